@@ -1,0 +1,313 @@
+//! glTF 2.0 loading (`.gltf` with embedded or side-by-side buffers, `.glb`),
+//! with the `gltf` crate doing the JSON and GLB parsing.
+//!
+//! Object rule (issue #2): one object per node that has a mesh and is part
+//! of the scene (the default scene, else the first; every root node when the
+//! file has no scene), in node index order, with the node's world transform
+//! applied. Named by the node name, else the mesh name, else `node<i>`.
+//! Triangle lists, strips and fans are read; points and lines are skipped
+//! and counted.
+//!
+//! The `gltf` crate's accessor reader assumes well-formed input (it
+//! debug-asserts element sizes and computes ranges without overflow
+//! checks), so every accessor is checked here first: type, count, stride and
+//! byte range. Sparse accessors and accessors without a buffer view are
+//! refused with a message saying so.
+
+use std::path::Path;
+
+use base64::Engine;
+use glam::{Mat4, Vec3};
+use gltf::accessor::{DataType, Dimensions};
+use gltf::mesh::Mode;
+
+use super::{Scene, SceneBuilder, SceneError, SceneFormat};
+
+/// Parses glTF or GLB `bytes` read from `path`; side-by-side buffers are
+/// read relative to `path`'s folder.
+pub(super) fn load_gltf(
+    path: &Path,
+    bytes: &[u8],
+    format: SceneFormat,
+) -> Result<Scene, SceneError> {
+    let err = |message: String| SceneError::Syntax {
+        path: path.to_owned(),
+        line: 0,
+        message,
+    };
+    let gltf =
+        gltf::Gltf::from_slice(bytes).map_err(|e| err(format!("cannot parse the glTF: {e}")))?;
+    let buffers = load_buffers(path, &gltf)?;
+    let doc = &gltf.document;
+
+    // World transforms of the nodes that are part of the scene.
+    let n = doc.nodes().len();
+    let mut world: Vec<Option<Mat4>> = vec![None; n];
+    let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
+        Some(scene) => scene.nodes().collect(),
+        None => {
+            let mut is_child = vec![false; n];
+            for node in doc.nodes() {
+                for c in node.children() {
+                    is_child[c.index()] = true;
+                }
+            }
+            doc.nodes().filter(|nd| !is_child[nd.index()]).collect()
+        }
+    };
+    let mut stack: Vec<(gltf::Node, Mat4)> =
+        roots.into_iter().map(|r| (r, Mat4::IDENTITY)).collect();
+    while let Some((node, parent)) = stack.pop() {
+        if world[node.index()].is_some() {
+            return Err(err(format!(
+                "node {} is reached twice in the node hierarchy (a cycle or a shared child)",
+                node.index()
+            )));
+        }
+        let m = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        world[node.index()] = Some(m);
+        stack.extend(node.children().map(|c| (c, m)));
+    }
+
+    let mut builder = SceneBuilder::new(format);
+    let mut positions: Vec<Vec3> = Vec::new();
+    let mut indices: Vec<u32> = Vec::new();
+    for node in doc.nodes() {
+        let (Some(mesh), Some(m)) = (node.mesh(), world[node.index()]) else {
+            continue;
+        };
+        let name = node
+            .name()
+            .or(mesh.name())
+            .map_or_else(|| format!("node{}", node.index()), str::to_owned);
+        builder.begin_object(name.clone());
+        for prim in mesh.primitives() {
+            let mode = prim.mode();
+            if !matches!(
+                mode,
+                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+            ) {
+                builder.skip_non_triangle();
+                continue;
+            }
+            let what = format!("mesh {} primitive {}", mesh.index(), prim.index());
+            let pos = prim
+                .get(&gltf::Semantic::Positions)
+                .ok_or_else(|| err(format!("{what} has no POSITION attribute")))?;
+            check_accessor(&pos, &[DataType::F32], Dimensions::Vec3, &buffers)
+                .map_err(|m| err(format!("{what} POSITION: {m}")))?;
+            if let Some(ix) = prim.indices() {
+                check_accessor(
+                    &ix,
+                    &[DataType::U8, DataType::U16, DataType::U32],
+                    Dimensions::Scalar,
+                    &buffers,
+                )
+                .map_err(|m| err(format!("{what} indices: {m}")))?;
+            }
+            let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+            positions.clear();
+            positions.extend(
+                reader
+                    .read_positions()
+                    .ok_or_else(|| err(format!("{what} POSITION cannot be read")))?
+                    .map(|p| m.transform_point3(Vec3::from_array(p))),
+            );
+            indices.clear();
+            match reader.read_indices() {
+                Some(ix) => indices.extend(ix.into_u32()),
+                None => indices.extend(0..positions.len() as u32),
+            }
+            if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {
+                return Err(SceneError::IndexOutOfRange {
+                    path: path.to_owned(),
+                    line: 0,
+                    message: format!(
+                        "{what} has index {bad} but only {} vertices",
+                        positions.len()
+                    ),
+                });
+            }
+            for [a, b, c] in assemble(mode, &indices) {
+                let t = [
+                    positions[a as usize],
+                    positions[b as usize],
+                    positions[c as usize],
+                ];
+                builder
+                    .push_triangle(t)
+                    .map_err(|bad| SceneError::NonFinite {
+                        path: path.to_owned(),
+                        line: 0,
+                        object: name.clone(),
+                        value: bad.0.to_string(),
+                    })?;
+            }
+        }
+    }
+    builder.finish(path)
+}
+
+/// The triangles of a list, strip or fan (strip winding alternation is
+/// irrelevant here: visibility does not cull back faces).
+fn assemble(mode: Mode, ix: &[u32]) -> Vec<[u32; 3]> {
+    match mode {
+        Mode::Triangles => ix.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+        Mode::TriangleStrip => ix.windows(3).map(|t| [t[0], t[1], t[2]]).collect(),
+        Mode::TriangleFan => ix.windows(2).skip(1).map(|t| [ix[0], t[0], t[1]]).collect(),
+        _ => Vec::new(),
+    }
+}
+
+/// Checks that the reader can read `acc` safely: an expected type, a
+/// buffer view, no sparse storage, and a byte range inside the buffer.
+fn check_accessor(
+    acc: &gltf::Accessor,
+    types: &[DataType],
+    dims: Dimensions,
+    buffers: &[Vec<u8>],
+) -> Result<(), String> {
+    let i = acc.index();
+    if acc.dimensions() != dims || !types.contains(&acc.data_type()) || acc.normalized() {
+        return Err(format!(
+            "accessor {i} is {:?} {:?}{}, expected {dims:?} of {types:?}",
+            acc.dimensions(),
+            acc.data_type(),
+            if acc.normalized() { " normalized" } else { "" }
+        ));
+    }
+    if acc.sparse().is_some() {
+        return Err(format!("accessor {i} is sparse, which vis5d does not read"));
+    }
+    let view = acc.view().ok_or_else(|| {
+        format!("accessor {i} has no bufferView (zero-filled accessors are not read)")
+    })?;
+    let size = acc.size();
+    let stride = view.stride().unwrap_or(size);
+    if stride < size {
+        return Err(format!(
+            "accessor {i} has stride {stride} below its element size {size}"
+        ));
+    }
+    let count = acc.count();
+    if count == 0 {
+        return Err(format!("accessor {i} has count 0"));
+    }
+    let end = (count - 1)
+        .checked_mul(stride)
+        .and_then(|x| x.checked_add(size))
+        .and_then(|x| x.checked_add(acc.offset()));
+    if end.is_none_or(|e| e > view.length()) {
+        return Err(format!("accessor {i} runs past the end of its bufferView"));
+    }
+    let data = buffers.get(view.buffer().index()).map_or(0, Vec::len);
+    if view
+        .offset()
+        .checked_add(view.length())
+        .is_none_or(|e| e > data)
+    {
+        return Err(format!(
+            "bufferView {} runs past the end of buffer {} ({data} bytes)",
+            view.index(),
+            view.buffer().index()
+        ));
+    }
+    Ok(())
+}
+
+/// The bytes of every buffer: the GLB binary chunk, a base64 `data:` URI,
+/// or a file beside the glTF.
+fn load_buffers(path: &Path, gltf: &gltf::Gltf) -> Result<Vec<Vec<u8>>, SceneError> {
+    let err = |message: String| SceneError::Syntax {
+        path: path.to_owned(),
+        line: 0,
+        message,
+    };
+    let mut out = Vec::new();
+    for buffer in gltf.document.buffers() {
+        let i = buffer.index();
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| {
+                err(format!(
+                    "buffer {i} refers to a GLB binary chunk that is missing"
+                ))
+            })?,
+            gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                let (_, payload) = uri
+                    .split_once(";base64,")
+                    .ok_or_else(|| err(format!("buffer {i} has a data URI that is not base64")))?;
+                base64::engine::general_purpose::STANDARD
+                    .decode(payload)
+                    .map_err(|e| err(format!("buffer {i} has invalid base64 data: {e}")))?
+            }
+            gltf::buffer::Source::Uri(uri) => {
+                let file = path
+                    .parent()
+                    .unwrap_or(Path::new(""))
+                    .join(percent_decode(uri));
+                std::fs::read(&file).map_err(|e| {
+                    err(format!(
+                        "buffer {i} file {} cannot be read: {e}",
+                        file.display()
+                    ))
+                })?
+            }
+        };
+        if data.len() < buffer.length() {
+            return Err(err(format!(
+                "buffer {i} holds {} bytes but declares byteLength {}",
+                data.len(),
+                buffer.length()
+            )));
+        }
+        out.push(data);
+    }
+    Ok(out)
+}
+
+/// Decodes `%XX` escapes of a relative URI (glTF URIs are percent-encoded).
+fn percent_decode(uri: &str) -> String {
+    let b = uri.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        let hex = |c: u8| (c as char).to_digit(16);
+        if b[i] == b'%'
+            && i + 2 < b.len()
+            && let (Some(h), Some(l)) = (hex(b[i + 1]), hex(b[i + 2]))
+        {
+            out.push((h * 16 + l) as u8);
+            i += 3;
+            continue;
+        }
+        out.push(b[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percent_decoding() {
+        assert_eq!(percent_decode("a%20b.bin"), "a b.bin");
+        assert_eq!(percent_decode("100%"), "100%");
+        assert_eq!(percent_decode("%4"), "%4");
+        assert_eq!(percent_decode("%zz"), "%zz");
+    }
+
+    #[test]
+    fn strips_and_fans() {
+        assert_eq!(
+            assemble(Mode::TriangleStrip, &[0, 1, 2, 3]),
+            [[0, 1, 2], [1, 2, 3]]
+        );
+        assert_eq!(
+            assemble(Mode::TriangleFan, &[0, 1, 2, 3]),
+            [[0, 1, 2], [0, 2, 3]]
+        );
+        assert_eq!(assemble(Mode::Triangles, &[0, 1, 2, 3]), [[0, 1, 2]]);
+    }
+}

@@ -1,0 +1,455 @@
+//! Scenes: named objects made of triangles, loaded from OBJ or glTF files or
+//! generated procedurally.
+//!
+//! An *object* is the unit of visibility: the builder decides for each view
+//! cell which objects can be seen, and the runtime answers with a bitset over
+//! objects. Objects are identified by their index, in file order; their
+//! names are for people and may repeat (repeats are kept and reported).
+//!
+//! Each object owns a contiguous range of the scene's triangle array, its
+//! bounding box, and a cumulative area table for uniform surface sampling
+//! (papers/003 sec. 5 casts rays "to random points on the object"): a
+//! triangle is picked with probability proportional to its area, then a
+//! point uniform in it (barycentric square-root warp).
+//!
+//! Invariants kept by [`SceneBuilder::finish`] and checked by
+//! [`Scene::validate`]: every coordinate is finite, every triangle has
+//! non-zero area, every object has at least one triangle, object ranges tile
+//! the triangle array in order, and the scene has at least one triangle.
+
+mod load_gltf;
+mod load_obj;
+pub mod procedural;
+mod scene_builder;
+mod write_obj;
+
+use std::fmt;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use rand::{Rng, RngExt};
+
+use crate::geom::Aabb;
+
+pub use scene_builder::SceneBuilder;
+pub use write_obj::{write_obj, write_obj_file};
+
+/// A triangle: three corners, in scene (world) coordinates.
+pub type Triangle = [Vec3; 3];
+
+/// One object of a scene: a named, contiguous range of triangles.
+#[derive(Clone, Debug)]
+pub struct Object {
+    /// The name from the file (OBJ `o`/`g` name, glTF node or mesh name).
+    pub name: String,
+    /// The object's triangles, as a range of [`Scene::triangles`].
+    pub triangles: Range<u32>,
+    /// The bounding box of the object's triangles.
+    pub bounds: Aabb,
+    /// The total surface area (one side), in squared scene units.
+    pub area: f64,
+}
+
+impl Object {
+    /// The number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+}
+
+/// The file format a scene came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SceneFormat {
+    /// Wavefront OBJ (`.obj`).
+    Obj,
+    /// glTF 2.0 with JSON (`.gltf`), buffers embedded or beside it.
+    Gltf,
+    /// Binary glTF 2.0 (`.glb`).
+    Glb,
+    /// Generated in memory (see [`procedural`]).
+    Procedural,
+}
+
+impl fmt::Display for SceneFormat {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            SceneFormat::Obj => "obj",
+            SceneFormat::Gltf => "gltf",
+            SceneFormat::Glb => "glb",
+            SceneFormat::Procedural => "procedural",
+        })
+    }
+}
+
+impl SceneFormat {
+    /// The format a file name's extension stands for (case-insensitive).
+    pub fn from_path(path: &Path) -> Option<SceneFormat> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "obj" => Some(SceneFormat::Obj),
+            "gltf" => Some(SceneFormat::Gltf),
+            "glb" => Some(SceneFormat::Glb),
+            _ => None,
+        }
+    }
+}
+
+/// What loading noticed and repaired: facts for the summary, never errors.
+#[derive(Clone, Debug, Default)]
+pub struct LoadReport {
+    /// Triangles dropped because their area is zero (collinear or repeated
+    /// corners); see [`is_degenerate`].
+    pub dropped_degenerate: usize,
+    /// Groups (OBJ `o`/`g`, glTF nodes) skipped because no triangle of
+    /// theirs survived: an object must have a surface to be sampled.
+    pub dropped_empty_objects: Vec<String>,
+    /// Primitives that are not surfaces and were skipped: OBJ `l`/`p`
+    /// lines, glTF points and lines.
+    pub skipped_non_triangles: usize,
+    /// Names used by more than one object, with how many objects use each,
+    /// sorted by name.
+    pub duplicate_names: Vec<(String, usize)>,
+}
+
+/// Errors of scene loading. Each names the file and says what to fix.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The file could not be opened or read.
+    #[error("{}: cannot read the scene file: {source}", path.display())]
+    Io {
+        /// The scene file.
+        path: PathBuf,
+        /// What the operating system said.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The extension names no format vis5d reads.
+    #[error(
+        "{}: unknown scene format {ext:?}: vis5d reads .obj, .gltf and .glb files",
+        path.display()
+    )]
+    UnknownFormat {
+        /// The scene file.
+        path: PathBuf,
+        /// The extension found (empty when there is none).
+        ext: String,
+    },
+    /// The file does not parse: `line` is 1-based (0 when unknown).
+    #[error("{}{}: {message}", path.display(), line_suffix(*line))]
+    Syntax {
+        /// The scene file.
+        path: PathBuf,
+        /// The 1-based line of an OBJ file, 0 when the format has no lines.
+        line: usize,
+        /// What is wrong there.
+        message: String,
+    },
+    /// A face or index refers to a vertex that does not exist.
+    #[error("{}{}: {message}", path.display(), line_suffix(*line))]
+    IndexOutOfRange {
+        /// The scene file.
+        path: PathBuf,
+        /// The 1-based line of an OBJ file, 0 when the format has no lines.
+        line: usize,
+        /// Which index, and the valid range.
+        message: String,
+    },
+    /// A vertex coordinate is NaN or infinite.
+    #[error(
+        "{}{}: object {object:?} has a vertex with a non-finite coordinate ({value}): \
+         fix or remove that vertex",
+        path.display(), line_suffix(*line)
+    )]
+    NonFinite {
+        /// The scene file.
+        path: PathBuf,
+        /// The 1-based line of an OBJ file where the value was seen, 0 when
+        /// unknown.
+        line: usize,
+        /// The object the vertex belongs to.
+        object: String,
+        /// The offending coordinate, as text.
+        value: String,
+    },
+    /// Nothing to see: no triangle of non-zero area.
+    #[error(
+        "{}: the scene has no triangles of non-zero area ({dropped} degenerate dropped): \
+         nothing can be visible",
+        path.display()
+    )]
+    Empty {
+        /// The scene file.
+        path: PathBuf,
+        /// How many degenerate triangles were dropped on the way.
+        dropped: usize,
+    },
+    /// The scene is too large for 32-bit triangle indices.
+    #[error("{}: the scene has more than 2^32 - 1 triangles", path.display())]
+    TooLarge {
+        /// The scene file.
+        path: PathBuf,
+    },
+}
+
+fn line_suffix(line: usize) -> String {
+    if line == 0 {
+        String::new()
+    } else {
+        format!(":{line}")
+    }
+}
+
+/// Whether a triangle has (numerically) zero area and is dropped on load:
+/// the cross product of two edges, computed in f64, is at most `1e-12`
+/// times the squared longest edge (the corners are collinear to within
+/// rounding), or the corners coincide.
+pub fn is_degenerate(t: &Triangle) -> bool {
+    let [a, b, c] = t.map(|v| v.as_dvec3());
+    let (e0, e1, e2) = (b - a, c - a, c - b);
+    let longest = e0
+        .length_squared()
+        .max(e1.length_squared())
+        .max(e2.length_squared());
+    let cross = e0.cross(e1).length();
+    longest == 0.0 || cross <= 1e-12 * longest
+}
+
+/// The area of a triangle (f64, one side).
+pub fn triangle_area(t: &Triangle) -> f64 {
+    let [a, b, c] = t.map(|v| v.as_dvec3());
+    0.5 * (b - a).cross(c - a).length()
+}
+
+/// A loaded scene: triangles grouped into objects.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    triangles: Vec<Triangle>,
+    /// Per triangle, the cumulative area of its object's triangles up to and
+    /// including it: the inverse-CDF table of surface sampling.
+    area_cdf: Vec<f64>,
+    objects: Vec<Object>,
+    bounds: Aabb,
+    format: SceneFormat,
+    report: LoadReport,
+}
+
+impl Scene {
+    /// All triangles, grouped by object in object order.
+    pub fn triangles(&self) -> &[Triangle] {
+        &self.triangles
+    }
+
+    /// The objects, in file order. An object's index is its identity.
+    pub fn objects(&self) -> &[Object] {
+        &self.objects
+    }
+
+    /// The triangles of object `object`.
+    pub fn object_triangles(&self, object: usize) -> &[Triangle] {
+        let r = &self.objects[object].triangles;
+        &self.triangles[r.start as usize..r.end as usize]
+    }
+
+    /// The object that triangle `triangle` belongs to (binary search).
+    pub fn object_of_triangle(&self, triangle: u32) -> usize {
+        self.objects
+            .partition_point(|o| o.triangles.end <= triangle)
+            .min(self.objects.len() - 1)
+    }
+
+    /// The bounding box of the whole scene.
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// The format the scene was read from.
+    pub fn format(&self) -> SceneFormat {
+        self.format
+    }
+
+    /// What loading dropped, skipped and noticed.
+    pub fn report(&self) -> &LoadReport {
+        &self.report
+    }
+
+    /// A point uniform on the surface of object `object`: a triangle chosen
+    /// with probability proportional to its area, then a uniform point in it.
+    pub fn sample_surface<R: Rng + ?Sized>(&self, object: usize, rng: &mut R) -> Vec3 {
+        let o = &self.objects[object];
+        let (start, end) = (o.triangles.start as usize, o.triangles.end as usize);
+        let cdf = &self.area_cdf[start..end];
+        let u = rng.random::<f64>() * o.area;
+        let i = cdf.partition_point(|&c| c <= u).min(cdf.len() - 1);
+        let [a, b, c] = self.triangles[start + i];
+        let s = rng.random::<f32>().sqrt();
+        let r = rng.random::<f32>();
+        a * (1.0 - s) + b * (s * (1.0 - r)) + c * (s * r)
+    }
+
+    /// Checks the invariants listed in the module docs; returns the first
+    /// broken one. Tests call it on every scene they make.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.objects.is_empty() || self.triangles.is_empty() {
+            return Err("the scene has no objects or no triangles".into());
+        }
+        if self.area_cdf.len() != self.triangles.len() {
+            return Err("the area table does not cover every triangle".into());
+        }
+        let mut next = 0u32;
+        let mut bounds = Aabb::EMPTY;
+        for (i, o) in self.objects.iter().enumerate() {
+            if o.triangles.start != next || o.triangles.end <= o.triangles.start {
+                return Err(format!(
+                    "object {i} ({:?}) has range {:?}",
+                    o.name, o.triangles
+                ));
+            }
+            next = o.triangles.end;
+            let tris = self.object_triangles(i);
+            let b = Aabb::from_points(tris.iter().flatten().copied());
+            if b != o.bounds {
+                return Err(format!("object {i} ({:?}) has wrong bounds", o.name));
+            }
+            bounds = bounds.union(&b);
+            let mut sum = 0.0;
+            for (k, t) in tris.iter().enumerate() {
+                if !t.iter().all(|v| v.is_finite()) || is_degenerate(t) {
+                    return Err(format!(
+                        "object {i} triangle {k} is non-finite or degenerate"
+                    ));
+                }
+                sum += triangle_area(t);
+                let cdf = self.area_cdf[o.triangles.start as usize + k];
+                if (cdf - sum).abs() > 1e-9 * sum.max(1.0) {
+                    return Err(format!("object {i} area table is wrong at triangle {k}"));
+                }
+            }
+            if (sum - o.area).abs() > 1e-9 * sum.max(1.0) {
+                return Err(format!("object {i} ({:?}) has wrong area", o.name));
+            }
+        }
+        if next as usize != self.triangles.len() {
+            return Err("object ranges do not cover the triangle array".into());
+        }
+        if bounds != self.bounds {
+            return Err("scene bounds are not the union of object bounds".into());
+        }
+        Ok(())
+    }
+}
+
+/// Loads a scene from an OBJ, glTF or GLB file, chosen by extension.
+pub fn load(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
+    load_with_progress(path, &mut |_, _| {})
+}
+
+/// As [`load`], calling `progress(done, total)` with bytes parsed so far
+/// while it works (often enough for a progress bar, rarely enough to cost
+/// nothing).
+pub fn load_with_progress(
+    path: impl AsRef<Path>,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Scene, SceneError> {
+    let path = path.as_ref();
+    let format = SceneFormat::from_path(path).ok_or_else(|| SceneError::UnknownFormat {
+        path: path.to_owned(),
+        ext: path
+            .extension()
+            .map(|e| e.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+    })?;
+    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    match format {
+        SceneFormat::Obj => load_obj::load_obj(path, &bytes, progress),
+        SceneFormat::Gltf | SceneFormat::Glb => load_gltf::load_gltf(path, &bytes, format),
+        SceneFormat::Procedural => unreachable!("no extension maps to Procedural"),
+    }
+}
+
+/// Parses OBJ text held in memory; `path` is only used in messages and to
+/// name a file without groups.
+pub fn load_obj_bytes(path: impl AsRef<Path>, bytes: &[u8]) -> Result<Scene, SceneError> {
+    load_obj::load_obj(path.as_ref(), bytes, &mut |_, _| {})
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    fn two_triangle_scene() -> Scene {
+        let mut b = SceneBuilder::new(SceneFormat::Procedural);
+        b.begin_object("pair");
+        // Areas 0.5 and 1.5.
+        b.push_triangle([Vec3::ZERO, Vec3::X, Vec3::Y]).unwrap();
+        b.push_triangle([
+            Vec3::new(10.0, 0.0, 0.0),
+            Vec3::new(13.0, 0.0, 0.0),
+            Vec3::new(10.0, 1.0, 0.0),
+        ])
+        .unwrap();
+        b.finish(Path::new("pair")).unwrap()
+    }
+
+    #[test]
+    fn sampling_is_area_weighted_and_on_the_surface() {
+        let scene = two_triangle_scene();
+        scene.validate().unwrap();
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let n = 40_000;
+        let mut big = 0usize;
+        let mut mean_small = Vec3::ZERO;
+        for _ in 0..n {
+            let p = scene.sample_surface(0, &mut rng);
+            assert_eq!(p.z, 0.0);
+            if p.x >= 10.0 {
+                big += 1;
+                let (u, v) = ((p.x - 10.0) / 3.0, p.y);
+                assert!(u >= -1e-6 && v >= -1e-6 && u + v <= 1.0 + 1e-6, "{p}");
+            } else {
+                assert!(p.x >= 0.0 && p.y >= 0.0 && p.x + p.y <= 1.0 + 1e-6, "{p}");
+                mean_small += p;
+            }
+        }
+        // P(big) = 0.75, standard error ~0.0022.
+        let frac = big as f64 / n as f64;
+        assert!(
+            (frac - 0.75).abs() < 0.01,
+            "fraction on the big triangle {frac}"
+        );
+        // Uniform in a triangle: the mean is the centroid (1/3, 1/3).
+        let mean = mean_small / (n - big) as f32;
+        assert!(
+            (mean - Vec3::new(1.0 / 3.0, 1.0 / 3.0, 0.0)).length() < 0.01,
+            "{mean}"
+        );
+    }
+
+    #[test]
+    fn degenerate_triangles() {
+        assert!(is_degenerate(&[Vec3::ZERO, Vec3::ZERO, Vec3::ZERO]));
+        assert!(is_degenerate(&[Vec3::ZERO, Vec3::X, Vec3::X * 2.0]));
+        assert!(is_degenerate(&[Vec3::ZERO, Vec3::X, Vec3::X]));
+        assert!(!is_degenerate(&[Vec3::ZERO, Vec3::X, Vec3::Y * 1e-3]));
+        assert_eq!(triangle_area(&[Vec3::ZERO, Vec3::X, Vec3::Y]), 0.5);
+    }
+
+    #[test]
+    fn object_of_triangle_finds_owner() {
+        let mut b = SceneBuilder::new(SceneFormat::Procedural);
+        for (name, n) in [("a", 2), ("b", 1), ("c", 3)] {
+            b.begin_object(name);
+            for k in 0..n {
+                let o = Vec3::splat(k as f32);
+                b.push_triangle([o, o + Vec3::X, o + Vec3::Y]).unwrap();
+            }
+        }
+        let s = b.finish(Path::new("abc")).unwrap();
+        let owners: Vec<usize> = (0..6).map(|t| s.object_of_triangle(t)).collect();
+        assert_eq!(owners, [0, 0, 1, 2, 2, 2]);
+    }
+}

@@ -1,0 +1,413 @@
+//! Closest-hit ray casting against a whole scene: a compressed wide BVH
+//! (obvhs `CwBvh`, Ylitie et al. 2017) over every triangle, answering "which
+//! object, which triangle, at what distance" for one ray or for batches
+//! traced in parallel with rayon.
+//!
+//! This is the measuring instrument of the builder (papers/003 sec. 5 casts
+//! rays "from a random point in the cell to a random point on the object"),
+//! so it must be exact, not approximately right:
+//! - the result is the triangle with the smallest `t` in `[tmin, tmax]`, as
+//!   computed by obvhs's Möller-Trumbore test ([`brute_force_closest_hit`]
+//!   runs that same test over every triangle, and the tests check the two
+//!   agree bit for bit on many random rays);
+//! - ties (a ray through a shared edge or vertex, coplanar overlaps) go to
+//!   the lowest triangle index, so the answer does not depend on the BVH's
+//!   layout or traversal order.
+//!
+//! Invariants: triangles are stored in BVH leaf order, so traversal reads
+//! them without the `primitive_indices` indirection that raw obvhs use
+//! needs; `ids` maps them back to scene order. Every triangle's box is
+//! padded (`BOX_PAD`) and rays are rescaled on the way in (`ScaledRay`), so
+//! that obvhs's rounded slab test and its fixed `t = 1e-4` start never skip
+//! a triangle the ray hits.
+//!
+//! Limit: the padding covers the slab test's rounding for origins within
+//! about a hundred scene diagonals of the scene; the builder's and the
+//! tests' rays start inside or next to it.
+
+use std::time::Duration;
+
+use glam::Vec3;
+use obvhs::BvhBuildParams;
+use obvhs::cwbvh::CwBvh;
+use obvhs::cwbvh::builder::build_cwbvh;
+use obvhs::ray::RayHit;
+use obvhs::triangle::Triangle as BvhTriangle;
+use rayon::prelude::*;
+
+use crate::geom::Aabb;
+use crate::scene::{Scene, Triangle};
+
+/// How much every triangle's box is grown before the BVH is built, relative
+/// to the scene's size plus its largest coordinate: about 170 ulps of the
+/// largest coordinate. obvhs's slab test rounds, and a triangle's box can
+/// be flat (an axis-aligned wall) or share a face with the hit point: a
+/// rounded entry a few ulps past the hit, or an exit a few ulps before the
+/// entry, would skip a triangle that the ray does hit. Padded, every box
+/// holds a neighbourhood of each of its triangle's points, so the ray is
+/// inside it a margin before and after any hit, and ties at the closest `t`
+/// are all visited. Costs nothing measurable (notes/trace.md).
+const BOX_PAD: f32 = 1e-5;
+
+/// A ray segment: the points `origin + t * dir` for `t` in `[tmin, tmax]`.
+///
+/// `t` is measured in units of `dir`'s length: with a unit `dir` it is a
+/// distance; with `dir = q - p` the segment from `p` to `q` is `t` in
+/// `[0, 1]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Where the ray starts (at `t = 0`).
+    pub origin: Vec3,
+    /// The direction; need not be unit length, must not be zero.
+    pub dir: Vec3,
+    /// The smallest `t` that counts as a hit.
+    pub tmin: f32,
+    /// The largest `t` that counts as a hit (may be infinite).
+    pub tmax: f32,
+}
+
+impl Ray {
+    /// The infinite ray from `origin` along `dir` (`t` in `[0, inf]`).
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Self {
+            origin,
+            dir,
+            tmin: 0.0,
+            tmax: f32::INFINITY,
+        }
+    }
+
+    /// The segment from `from` to `to` (`dir = to - from`, `t` in `[0, 1]`).
+    pub fn segment(from: Vec3, to: Vec3) -> Self {
+        Self {
+            origin: from,
+            dir: to - from,
+            tmin: 0.0,
+            tmax: 1.0,
+        }
+    }
+
+    /// The same ray with another `tmin`.
+    pub fn with_tmin(self, tmin: f32) -> Self {
+        Self { tmin, ..self }
+    }
+
+    /// The same ray with another `tmax`.
+    pub fn with_tmax(self, tmax: f32) -> Self {
+        Self { tmax, ..self }
+    }
+
+    /// The point at parameter `t`.
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + self.dir * t
+    }
+
+    /// Whether the ray can be traced: finite origin, finite non-zero
+    /// direction, `tmin <= tmax`, `tmin` not NaN.
+    pub fn is_valid(&self) -> bool {
+        self.origin.is_finite()
+            && self.dir.is_finite()
+            && self.dir != Vec3::ZERO
+            && self.tmin <= self.tmax
+    }
+}
+
+/// The binary exponent of `x` (`floor(log2 |x|)`), -126 for 0 and
+/// subnormals.
+fn exponent(x: f32) -> i32 {
+    (((x.to_bits() >> 23) & 0xff) as i32 - 127).max(-126)
+}
+
+/// The size that sets the scale of rounding errors in a scene: its diagonal
+/// plus its largest coordinate (a scene far from the origin rounds coarser).
+fn rounding_scale(b: Aabb) -> f32 {
+    b.diagonal() + b.min.abs().max(b.max.abs()).max_element()
+}
+
+/// The exponent `e` such that rays are handed to obvhs with `|dir|`
+/// (largest component) near `2^e`: 2^-20 of the scene's rounding scale.
+fn direction_exponent(b: Aabb) -> i32 {
+    exponent(rounding_scale(b)) - 20
+}
+
+/// A ray as obvhs traces it, with `t_factor` to turn its `t` back into
+/// the caller's `t`.
+///
+/// Note: deviations from obvhs's own `Ray::new`, each for exactness:
+/// - the direction is scaled by an exact power of two to a length near
+///   2^-20 of the scene's size. obvhs's box test starts at `t = 1e-4`
+///   (`cwbvh::node::EPSILON`) whatever the ray's `tmin`, so after a hit
+///   closer than that it can skip every other box and return a hit that is
+///   not the closest. Scaled, `t = 1e-4` is about 1e-10 of the scene's size.
+///   Power-of-two scaling commutes with rounding, so the triangle test gives
+///   exactly `t / 2^k`, and `t_factor = 2^k` gives back exactly `t`;
+/// - -0.0 components become +0.0: obvhs orders the slabs by `d < 0.0` but
+///   `safe_inverse(-0.0)` is negative, and the box test then fails: a ray
+///   along `-Vec3::Z` = (-0, -0, -1) missed everything;
+/// - the inverse direction is `1 / d` clamped to 1e20 in magnitude, not
+///   `safe_inverse`'s 1 / `f32::EPSILON`, which would make the box test
+///   treat nearly axis-parallel rays as moving sideways faster than they do.
+struct ScaledRay {
+    ray: obvhs::ray::Ray,
+    t_factor: f32,
+}
+
+impl ScaledRay {
+    fn new(ray: &Ray, dir_exponent: i32) -> Self {
+        // dir * 2^shift has its largest component in [2^e, 2^(e+1)).
+        let shift = (dir_exponent - exponent(ray.dir.abs().max_element())).clamp(-120, 120);
+        let scale = f32::from_bits(((shift + 127) as u32) << 23);
+        let unscale = f32::from_bits(((127 - shift) as u32) << 23);
+        let dir = ray.dir * scale + Vec3::ZERO;
+        let inv = Vec3::select(
+            dir.cmpeq(Vec3::ZERO),
+            Vec3::splat(1e20),
+            dir.recip().clamp(Vec3::splat(-1e20), Vec3::splat(1e20)),
+        );
+        let ray = obvhs::ray::Ray {
+            origin: ray.origin.into(),
+            direction: dir.into(),
+            inv_direction: inv.into(),
+            tmin: ray.tmin * unscale,
+            tmax: ray.tmax * unscale,
+        };
+        Self {
+            ray,
+            t_factor: scale,
+        }
+    }
+}
+
+/// The closest hit of a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// The object hit (index into [`Scene::objects`]).
+    pub object: u32,
+    /// The triangle hit (index into [`Scene::triangles`]).
+    pub triangle: u32,
+    /// The ray parameter of the hit point (a distance for unit directions).
+    pub t: f32,
+}
+
+fn to_bvh_triangle(t: &Triangle) -> BvhTriangle {
+    BvhTriangle {
+        v0: t[0].into(),
+        v1: t[1].into(),
+        v2: t[2].into(),
+    }
+}
+
+/// A BVH over a scene's triangles, answering closest-hit queries. Tracing
+/// takes `&self` and is safe from many threads at once.
+pub struct Tracer {
+    bvh: CwBvh,
+    /// Triangles in BVH leaf order.
+    tris: Vec<BvhTriangle>,
+    /// For each triangle in BVH order, its scene index.
+    ids: Vec<u32>,
+    /// For each triangle in scene order, its object.
+    tri_object: Vec<u32>,
+    /// See [`ScaledRay`].
+    dir_exponent: i32,
+    build_time: Duration,
+}
+
+impl std::fmt::Debug for Tracer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Tracer")
+            .field("triangles", &self.tris.len())
+            .field("bvh_nodes", &self.bvh.nodes.len())
+            .field("build_time", &self.build_time)
+            .finish()
+    }
+}
+
+impl Tracer {
+    /// Builds the BVH over every triangle of `scene` (obvhs's
+    /// `medium_build` preset: the best trace speed for the build time on
+    /// the scenes measured in notes/trace.md).
+    pub fn new(scene: &Scene) -> Self {
+        let start = std::time::Instant::now();
+        let scene_tris: Vec<BvhTriangle> = scene.triangles().iter().map(to_bvh_triangle).collect();
+        let b = scene.bounds();
+        let pad = BOX_PAD * rounding_scale(b);
+        let boxes: Vec<obvhs::aabb::Aabb> = scene_tris
+            .iter()
+            .map(|t| {
+                let a = t.aabb();
+                obvhs::aabb::Aabb::new(a.min - pad, a.max + pad)
+            })
+            .collect();
+        let bvh = build_cwbvh(
+            &boxes,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
+        let ids = bvh.primitive_indices.clone();
+        let tris = ids.iter().map(|&i| scene_tris[i as usize]).collect();
+        let mut tri_object = vec![0u32; scene_tris.len()];
+        for (o, obj) in scene.objects().iter().enumerate() {
+            tri_object[obj.triangles.start as usize..obj.triangles.end as usize].fill(o as u32);
+        }
+        Self {
+            bvh,
+            tris,
+            ids,
+            tri_object,
+            dir_exponent: direction_exponent(b),
+            build_time: start.elapsed(),
+        }
+    }
+
+    /// How long [`Tracer::new`] took.
+    pub fn build_time(&self) -> Duration {
+        self.build_time
+    }
+
+    /// The number of triangles traced against.
+    pub fn triangle_count(&self) -> usize {
+        self.tris.len()
+    }
+
+    /// The closest hit of `ray` in `[tmin, tmax]`, or `None` when it hits
+    /// nothing there (or is not [valid](Ray::is_valid)).
+    pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        if !ray.is_valid() {
+            return None;
+        }
+        let scaled = ScaledRay::new(ray, self.dir_exponent);
+        let mut best_t = f32::INFINITY;
+        let mut best = u32::MAX;
+        let mut hit = RayHit::none();
+        self.bvh.ray_traverse(scaled.ray, &mut hit, |r, i| {
+            let t = self.tris[i].intersect(r);
+            if t < f32::INFINITY && (t < best_t || (t == best_t && self.ids[i] < best)) {
+                best_t = t;
+                best = self.ids[i];
+            }
+            // obvhs narrows the ray's tmax to t; the padded boxes of
+            // triangles tied at t are still entered before t, and the
+            // triangle test accepts t == tmax, so ties reach the test above.
+            t
+        });
+        (best != u32::MAX).then(|| Hit {
+            object: self.tri_object[best as usize],
+            triangle: best,
+            t: best_t * scaled.t_factor,
+        })
+    }
+
+    /// The closest hits of many rays, traced in parallel; `out[i]` is the
+    /// hit of `rays[i]`. Allocates nothing.
+    ///
+    /// # Panics
+    /// When `out` and `rays` differ in length.
+    pub fn closest_hits_into(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        assert_eq!(rays.len(), out.len(), "one output slot per ray");
+        const CHUNK: usize = 256;
+        out.par_chunks_mut(CHUNK)
+            .zip(rays.par_chunks(CHUNK))
+            .for_each(|(out, rays)| {
+                for (o, r) in out.iter_mut().zip(rays) {
+                    *o = self.closest_hit(r);
+                }
+            });
+    }
+
+    /// The closest hits of many rays, traced in parallel, in ray order.
+    pub fn closest_hits(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
+        let mut out = vec![None; rays.len()];
+        self.closest_hits_into(rays, &mut out);
+        out
+    }
+}
+
+/// The closest hit of `ray` by testing every triangle of `scene` in order
+/// with the same triangle test as [`Tracer`]: the reference the tracer is
+/// checked against. Linear in the triangle count.
+pub fn brute_force_closest_hit(scene: &Scene, ray: &Ray) -> Option<Hit> {
+    if !ray.is_valid() {
+        return None;
+    }
+    let scaled = ScaledRay::new(ray, direction_exponent(scene.bounds()));
+    let r = scaled.ray;
+    let mut best: Option<(u32, f32)> = None;
+    for (i, tri) in scene.triangles().iter().enumerate() {
+        let t = to_bvh_triangle(tri).intersect(&r);
+        if t < best.map_or(f32::INFINITY, |b| b.1) {
+            best = Some((i as u32, t));
+        }
+    }
+    best.map(|(triangle, t)| Hit {
+        object: scene.object_of_triangle(triangle) as u32,
+        triangle,
+        t: t * scaled.t_factor,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{SceneBuilder, SceneFormat};
+    use std::path::Path;
+
+    fn quad_scene() -> Scene {
+        // Two unit squares facing +z at z = 0 and z = 1, objects "near"
+        // (z = 1) and "far" (z = 0).
+        let mut b = SceneBuilder::new(SceneFormat::Procedural);
+        for (name, z) in [("far", 0.0), ("near", 1.0)] {
+            b.begin_object(name);
+            let p = |x: f32, y: f32| Vec3::new(x, y, z);
+            b.push_triangle([p(0.0, 0.0), p(1.0, 0.0), p(1.0, 1.0)])
+                .unwrap();
+            b.push_triangle([p(0.0, 0.0), p(1.0, 1.0), p(0.0, 1.0)])
+                .unwrap();
+        }
+        b.finish(Path::new("quads")).unwrap()
+    }
+
+    #[test]
+    fn closest_hit_picks_the_nearer_object_and_respects_the_interval() {
+        let s = quad_scene();
+        let tracer = Tracer::new(&s);
+        let down = Ray::new(Vec3::new(0.3, 0.6, 2.0), -Vec3::Z);
+        let h = tracer.closest_hit(&down).unwrap();
+        assert_eq!((h.object, h.t), (1, 1.0));
+        let h = tracer.closest_hit(&down.with_tmin(1.5)).unwrap();
+        assert_eq!((h.object, h.t), (0, 2.0));
+        assert_eq!(tracer.closest_hit(&down.with_tmax(0.5)), None);
+        assert_eq!(
+            tracer.closest_hit(&Ray::new(Vec3::splat(5.0), Vec3::Z)),
+            None
+        );
+        let seg = Ray::segment(Vec3::new(0.5, 0.5, 0.5), Vec3::new(0.5, 0.5, -0.5));
+        assert_eq!(tracer.closest_hit(&seg).unwrap().t, 0.5);
+    }
+
+    #[test]
+    fn shared_edges_go_to_the_lowest_triangle() {
+        let s = quad_scene();
+        let tracer = Tracer::new(&s);
+        // Straight down the diagonal shared by triangles 2 and 3.
+        let r = Ray::new(Vec3::new(0.5, 0.5, 3.0), -Vec3::Z);
+        let h = tracer.closest_hit(&r).unwrap();
+        assert_eq!(Some(h), brute_force_closest_hit(&s, &r));
+        assert_eq!(h.triangle, 2);
+    }
+
+    #[test]
+    fn invalid_rays_hit_nothing() {
+        let s = quad_scene();
+        let tracer = Tracer::new(&s);
+        let o = Vec3::new(0.5, 0.5, 2.0);
+        for r in [
+            Ray::new(o, Vec3::ZERO),
+            Ray::new(o, Vec3::new(f32::NAN, 0.0, -1.0)),
+            Ray::new(Vec3::new(f32::INFINITY, 0.0, 0.0), -Vec3::Z),
+            Ray::new(o, -Vec3::Z).with_tmin(2.0).with_tmax(1.0),
+        ] {
+            assert_eq!(tracer.closest_hit(&r), None, "{r:?}");
+            assert_eq!(brute_force_closest_hit(&s, &r), None, "{r:?}");
+        }
+    }
+}

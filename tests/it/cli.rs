@@ -1,0 +1,127 @@
+//! The `vis5d` binary: help, `info`, `scene`, and its error messages.
+
+use std::process::{Command, Output};
+
+fn vis5d(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vis5d"))
+        .args(args)
+        .current_dir(crate::root())
+        .output()
+        .unwrap()
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+#[test]
+fn help_explains_the_commands() {
+    let out = vis5d(&["--help"]);
+    assert!(out.status.success());
+    let help = text(&out.stdout);
+    for word in ["info", "scene", "visibility"] {
+        assert!(help.contains(word), "{help}");
+    }
+    let out = vis5d(&["scene", "--help"]);
+    let help = text(&out.stdout);
+    for word in [
+        "apartment",
+        "office",
+        "city",
+        "forest",
+        "machine",
+        "--replicate",
+        "--seed",
+    ] {
+        assert!(help.contains(word), "{help}");
+    }
+}
+
+#[test]
+fn info_json_matches_the_library() {
+    let out = vis5d(&["info", "scenes/apartment.obj", "--json"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let s = vis5d::scene::load(crate::committed("apartment.obj")).unwrap();
+    assert_eq!(v["objects"], s.objects().len());
+    assert_eq!(v["triangles"], s.triangles().len());
+    assert_eq!(v["format"], "obj");
+    assert_eq!(
+        v["object_list"].as_array().unwrap().len(),
+        s.objects().len()
+    );
+    assert_eq!(v["object_list"][0]["name"], s.objects()[0].name.as_str());
+    assert_eq!(v["dropped_degenerate_triangles"], 0);
+}
+
+#[test]
+fn info_text_reports_drops_and_duplicates() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("dups.obj");
+    std::fs::write(
+        &p,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\no a\nf 1 2 3\no a\nf 1 2 3\no b\nf 1 2 2\n",
+    )
+    .unwrap();
+    let out = vis5d(&["info", p.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let t = text(&out.stdout);
+    assert!(t.contains("objects          2"), "{t}");
+    assert!(
+        t.contains("1 zero-area triangles, 1 groups without triangles"),
+        "{t}"
+    );
+    assert!(t.contains("\"a\" x2"), "{t}");
+}
+
+#[test]
+fn errors_name_the_file_and_fail() {
+    for (args, want) in [
+        (
+            vec!["info", "nope.obj"],
+            "error: nope.obj: cannot read the scene file",
+        ),
+        (
+            vec!["info", "Cargo.toml"],
+            "error: Cargo.toml: unknown scene format \"toml\"",
+        ),
+        (
+            vec!["scene", "castle", "-o", "x.obj"],
+            "unknown scene kind \"castle\"",
+        ),
+        (
+            vec!["scene", "city", "-o", "x.txt"],
+            "x.txt: the output must be an .obj file",
+        ),
+        (
+            vec!["scene", "city", "-o", "no/such/dir/x.obj"],
+            "no/such/dir/x.obj: cannot write the scene",
+        ),
+    ] {
+        let out = vis5d(&args);
+        assert!(!out.status.success(), "{args:?}");
+        let err = text(&out.stderr);
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn scene_writes_the_committed_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("a.obj");
+    let out = vis5d(&[
+        "scene",
+        "apartment",
+        "--seed",
+        "1",
+        "-o",
+        p.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert_eq!(
+        std::fs::read(&p).unwrap(),
+        std::fs::read(crate::committed("apartment.obj")).unwrap()
+    );
+    // Nothing but the output is left in the folder (no temporary file).
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}

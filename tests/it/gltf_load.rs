@@ -1,0 +1,372 @@
+//! glTF and GLB loading: node hierarchy and transforms, naming, buffers
+//! embedded, beside the file and in the GLB chunk, and bad input.
+
+use std::f32::consts::FRAC_1_SQRT_2;
+
+use base64::Engine;
+use glam::{Mat4, Quat, Vec3};
+use serde_json::{Value, json};
+use vis5d::scene::{self, Scene, SceneError};
+
+/// One mesh of a test file: one primitive.
+struct Mesh {
+    name: Option<&'static str>,
+    positions: Vec<[f32; 3]>,
+    indices: Option<Vec<u32>>,
+    /// glTF primitive mode (4 = triangles, 5 = strip, 6 = fan, 0 = points).
+    mode: u32,
+}
+
+fn tri_mesh(name: Option<&'static str>) -> Mesh {
+    Mesh {
+        name,
+        positions: vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ],
+        indices: Some(vec![0, 1, 2, 0, 1, 3]),
+        mode: 4,
+    }
+}
+
+/// The glTF JSON (without `buffers[0].uri`) and the binary buffer for
+/// `meshes`, `nodes` and `scenes`.
+fn document(meshes: &[Mesh], nodes: Value, scenes: Value) -> (Value, Vec<u8>) {
+    let mut bin = Vec::new();
+    let (mut views, mut accessors, mut jmeshes) = (vec![], vec![], vec![]);
+    for m in meshes {
+        let offset = bin.len();
+        for p in &m.positions {
+            for c in p {
+                bin.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": bin.len() - offset}));
+        let finite: Vec<&[f32; 3]> = m
+            .positions
+            .iter()
+            .filter(|p| p.iter().all(|c| c.is_finite()))
+            .collect();
+        let (mut min, mut max) = ([f32::MAX; 3], [f32::MIN; 3]);
+        for p in finite {
+            for k in 0..3 {
+                min[k] = min[k].min(p[k]);
+                max[k] = max[k].max(p[k]);
+            }
+        }
+        accessors.push(json!({
+            "bufferView": views.len() - 1, "componentType": 5126, "count": m.positions.len(),
+            "type": "VEC3", "min": min, "max": max
+        }));
+        let mut prim = json!({"attributes": {"POSITION": accessors.len() - 1}, "mode": m.mode});
+        if let Some(ix) = &m.indices {
+            let offset = bin.len();
+            for i in ix {
+                bin.extend_from_slice(&i.to_le_bytes());
+            }
+            views
+                .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": bin.len() - offset}));
+            accessors.push(json!({
+                "bufferView": views.len() - 1, "componentType": 5125, "count": ix.len(), "type": "SCALAR"
+            }));
+            prim["indices"] = json!(accessors.len() - 1);
+        }
+        let mut jm = json!({"primitives": [prim]});
+        if let Some(n) = m.name {
+            jm["name"] = json!(n);
+        }
+        jmeshes.push(jm);
+    }
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": scenes,
+        "nodes": nodes,
+        "meshes": jmeshes,
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{"byteLength": bin.len()}],
+    });
+    (doc, bin)
+}
+
+/// Writes `doc` with its buffer embedded as a data URI.
+fn write_embedded(
+    dir: &tempfile::TempDir,
+    name: &str,
+    mut doc: Value,
+    bin: &[u8],
+) -> std::path::PathBuf {
+    let b64 = base64::engine::general_purpose::STANDARD.encode(bin);
+    doc["buffers"][0]["uri"] = json!(format!("data:application/octet-stream;base64,{b64}"));
+    let path = dir.path().join(name);
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    path
+}
+
+/// Writes `doc` and `bin` as a binary glTF.
+fn write_glb(dir: &tempfile::TempDir, name: &str, doc: &Value, bin: &[u8]) -> std::path::PathBuf {
+    let mut json = serde_json::to_vec(doc).unwrap();
+    while !json.len().is_multiple_of(4) {
+        json.push(b' ');
+    }
+    let mut bin = bin.to_vec();
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = Vec::new();
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(&0x4E4F_534Au32.to_le_bytes());
+    out.extend_from_slice(&json);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(&0x004E_4942u32.to_le_bytes());
+    out.extend_from_slice(&bin);
+    let path = dir.path().join(name);
+    std::fs::write(&path, out).unwrap();
+    path
+}
+
+/// A hierarchy: node 0 "parent" (translated, mesh "meshA"), its child node
+/// 1 (unnamed, rotated and scaled, mesh "meshB"), its grandchild node 2
+/// (unnamed, unnamed mesh), and node 3 with a mesh but outside the scene.
+fn hierarchy() -> (Value, Vec<u8>) {
+    let meshes = [
+        tri_mesh(Some("meshA")),
+        tri_mesh(Some("meshB")),
+        tri_mesh(None),
+        tri_mesh(Some("orphan")),
+    ];
+    let nodes = json!([
+        {"name": "parent", "mesh": 0, "translation": [10.0, 0.0, 0.0], "children": [1]},
+        {"mesh": 1, "rotation": [0.0, 0.0, FRAC_1_SQRT_2, FRAC_1_SQRT_2], "scale": [2.0, 2.0, 2.0], "children": [2]},
+        {"mesh": 2, "matrix": [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,5,1]},
+        {"name": "not_in_scene", "mesh": 3}
+    ]);
+    document(&meshes, nodes, json!([{"nodes": [0]}]))
+}
+
+fn expected_hierarchy_transforms() -> [Mat4; 3] {
+    let parent = Mat4::from_translation(Vec3::new(10.0, 0.0, 0.0));
+    let child = parent
+        * Mat4::from_scale_rotation_translation(
+            Vec3::splat(2.0),
+            Quat::from_xyzw(0.0, 0.0, FRAC_1_SQRT_2, FRAC_1_SQRT_2),
+            Vec3::ZERO,
+        );
+    let grandchild = child * Mat4::from_translation(Vec3::new(0.0, 0.0, 5.0));
+    [parent, child, grandchild]
+}
+
+fn check_hierarchy(s: &Scene) {
+    s.validate().unwrap();
+    let names: Vec<&str> = s.objects().iter().map(|o| o.name.as_str()).collect();
+    assert_eq!(names, ["parent", "meshB", "node2"]);
+    let local = tri_mesh(None);
+    for (o, m) in expected_hierarchy_transforms().iter().enumerate() {
+        let tris = s.object_triangles(o);
+        assert_eq!(tris.len(), 2);
+        for (t, ix) in tris.iter().zip(local.indices.as_ref().unwrap().chunks(3)) {
+            for (v, &i) in t.iter().zip(ix) {
+                let want = m.transform_point3(Vec3::from_array(local.positions[i as usize]));
+                assert!((*v - want).length() < 1e-5, "object {o}: {v} vs {want}");
+            }
+        }
+    }
+}
+
+#[test]
+fn hierarchy_transforms_and_names_embedded_buffer() {
+    let dir = tempfile::tempdir().unwrap();
+    let (doc, bin) = hierarchy();
+    let s = scene::load(write_embedded(&dir, "h.gltf", doc, &bin)).unwrap();
+    assert_eq!(s.format(), scene::SceneFormat::Gltf);
+    check_hierarchy(&s);
+}
+
+#[test]
+fn hierarchy_glb() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut doc, bin) = hierarchy();
+    doc["buffers"][0]["byteLength"] = json!(bin.len());
+    let s = scene::load(write_glb(&dir, "h.glb", &doc, &bin)).unwrap();
+    assert_eq!(s.format(), scene::SceneFormat::Glb);
+    check_hierarchy(&s);
+}
+
+#[test]
+fn buffer_in_a_file_beside_the_gltf() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut doc, bin) = hierarchy();
+    std::fs::write(dir.path().join("my buffer.bin"), &bin).unwrap();
+    doc["buffers"][0]["uri"] = json!("my%20buffer.bin");
+    let path = dir.path().join("side.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    check_hierarchy(&scene::load(&path).unwrap());
+
+    std::fs::remove_file(dir.path().join("my buffer.bin")).unwrap();
+    let msg = scene::load(&path).unwrap_err().to_string();
+    assert!(
+        msg.contains("side.gltf") && msg.contains("my buffer.bin"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn no_scene_means_every_root_node() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut doc, bin) = hierarchy();
+    doc.as_object_mut().unwrap().remove("scene");
+    doc.as_object_mut().unwrap().remove("scenes");
+    let s = scene::load(write_embedded(&dir, "noscene.gltf", doc, &bin)).unwrap();
+    let names: Vec<&str> = s.objects().iter().map(|o| o.name.as_str()).collect();
+    assert_eq!(names, ["parent", "meshB", "node2", "not_in_scene"]);
+}
+
+#[test]
+fn strips_fans_points_and_unindexed() {
+    let dir = tempfile::tempdir().unwrap();
+    let quad = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [1.0, 1.0, 0.0],
+    ];
+    let meshes = [
+        Mesh {
+            name: Some("strip"),
+            positions: quad.clone(),
+            indices: None,
+            mode: 5,
+        },
+        Mesh {
+            name: Some("fan"),
+            positions: quad.clone(),
+            indices: Some(vec![0, 1, 3, 2]),
+            mode: 6,
+        },
+        Mesh {
+            name: Some("points"),
+            positions: quad.clone(),
+            indices: None,
+            mode: 0,
+        },
+        Mesh {
+            name: Some("list"),
+            positions: quad[..3].to_vec(),
+            indices: None,
+            mode: 4,
+        },
+    ];
+    let nodes = json!([{"mesh": 0}, {"mesh": 1}, {"mesh": 2}, {"mesh": 3}]);
+    let (doc, bin) = document(&meshes, nodes, json!([{"nodes": [0, 1, 2, 3]}]));
+    let s = scene::load(write_embedded(&dir, "modes.gltf", doc, &bin)).unwrap();
+    let got: Vec<(&str, usize)> = s
+        .objects()
+        .iter()
+        .map(|o| (o.name.as_str(), o.triangle_count()))
+        .collect();
+    assert_eq!(got, [("strip", 2), ("fan", 2), ("list", 1)]);
+    assert_eq!(s.report().skipped_non_triangles, 1);
+    assert_eq!(s.report().dropped_empty_objects, ["points"]);
+    // Both quads cover the unit square.
+    assert!((s.objects()[0].area - 1.0).abs() < 1e-9 && (s.objects()[1].area - 1.0).abs() < 1e-9);
+}
+
+fn load_err(doc: Value, bin: &[u8]) -> (SceneError, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let e = scene::load(write_embedded(&dir, "bad.gltf", doc, bin)).unwrap_err();
+    let msg = e.to_string();
+    assert!(msg.contains("bad.gltf"), "{msg}");
+    (e, msg)
+}
+
+#[test]
+fn index_out_of_range() {
+    let mut m = tri_mesh(Some("m"));
+    m.indices = Some(vec![0, 1, 7]);
+    let (doc, bin) = document(&[m], json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    let (e, msg) = load_err(doc, &bin);
+    assert!(matches!(e, SceneError::IndexOutOfRange { .. }), "{msg}");
+    assert!(msg.contains("index 7 but only 4 vertices"), "{msg}");
+}
+
+#[test]
+fn non_finite_positions() {
+    let mut m = tri_mesh(Some("m"));
+    m.positions[1] = [f32::NAN, 0.0, 0.0];
+    let (doc, bin) = document(
+        &[m],
+        json!([{"name": "bad node", "mesh": 0}]),
+        json!([{"nodes": [0]}]),
+    );
+    let (e, msg) = load_err(doc, &bin);
+    assert!(matches!(e, SceneError::NonFinite { .. }), "{msg}");
+    assert!(msg.contains("\"bad node\""), "{msg}");
+}
+
+#[test]
+fn malformed_documents() {
+    let dir = tempfile::tempdir().unwrap();
+    // Not JSON at all, and a truncated GLB.
+    for (name, bytes) in [
+        ("x.gltf", b"{ not json".to_vec()),
+        ("x.glb", b"glTF\x02\0\0\0\xff\0\0\0".to_vec()),
+    ] {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        let msg = scene::load(&p).unwrap_err().to_string();
+        assert!(
+            msg.contains(name) && msg.contains("cannot parse the glTF"),
+            "{msg}"
+        );
+    }
+    // A POSITION accessor of the wrong type.
+    let (mut doc, bin) = document(
+        &[tri_mesh(None)],
+        json!([{"mesh": 0}]),
+        json!([{"nodes": [0]}]),
+    );
+    doc["accessors"][0]["type"] = json!("VEC2");
+    doc["accessors"][0]["min"] = json!([0.0, 0.0]);
+    doc["accessors"][0]["max"] = json!([1.0, 1.0]);
+    let (_, msg) = load_err(doc, &bin);
+    assert!(msg.contains("POSITION"), "{msg}");
+    // An accessor running past its view.
+    let (mut doc, bin) = document(
+        &[tri_mesh(None)],
+        json!([{"mesh": 0}]),
+        json!([{"nodes": [0]}]),
+    );
+    doc["accessors"][1]["count"] = json!(600);
+    let (_, msg) = load_err(doc, &bin);
+    assert!(msg.contains("runs past the end"), "{msg}");
+    // A view running past its buffer.
+    let (mut doc, bin) = document(
+        &[tri_mesh(None)],
+        json!([{"mesh": 0}]),
+        json!([{"nodes": [0]}]),
+    );
+    doc["bufferViews"][1]["byteLength"] = json!(4096);
+    doc["accessors"][1]["count"] = json!(600);
+    let (_, msg) = load_err(doc, &bin);
+    assert!(msg.contains("runs past the end"), "{msg}");
+    // A buffer shorter than it says.
+    let (mut doc, bin) = document(
+        &[tri_mesh(None)],
+        json!([{"mesh": 0}]),
+        json!([{"nodes": [0]}]),
+    );
+    doc["buffers"][0]["byteLength"] = json!(bin.len() + 100);
+    let (_, msg) = load_err(doc, &bin);
+    assert!(msg.contains("declares byteLength"), "{msg}");
+    // No meshes at all.
+    let (doc, bin) = document(&[], json!([{"name": "empty"}]), json!([{"nodes": [0]}]));
+    let (e, msg) = load_err(doc, &bin);
+    assert!(matches!(e, SceneError::Empty { .. }), "{msg}");
+}

@@ -1,0 +1,29 @@
+//! vis5d's integration tests: one binary, a module per capability.
+//!
+//! Scenes come from `scenes/` (committed, small) and, where present, from
+//! `../shared/scenes/` (real scenes made by others; CI has them beside the
+//! checkout). Every random generator is seeded.
+
+mod cli;
+mod gltf_load;
+mod obj_load;
+mod procedural;
+mod real_scenes;
+mod trace;
+
+use std::path::{Path, PathBuf};
+
+/// The project root.
+pub fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A committed scene of `scenes/`.
+pub fn committed(name: &str) -> PathBuf {
+    root().join("scenes").join(name)
+}
+
+/// The shared real-scene folder, `../shared/scenes`.
+pub fn shared_scenes() -> PathBuf {
+    root().join("..").join("shared").join("scenes")
+}

@@ -1,0 +1,135 @@
+//! The tracer is exact: on thousands of random rays of every kind the
+//! builder and the tests cast, it returns bit for bit what a loop over all
+//! triangles returns.
+
+use glam::Vec3;
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+use vis5d::scene::{self, Scene};
+use vis5d::trace::{Ray, Tracer, brute_force_closest_hit};
+
+fn unit(rng: &mut Pcg64) -> Vec3 {
+    let z = rng.random_range(-1.0..1.0f32);
+    let a = rng.random_range(0.0..std::f32::consts::TAU);
+    let r = (1.0 - z * z).sqrt();
+    Vec3::new(r * a.cos(), r * a.sin(), z)
+}
+
+/// Random rays of five kinds over `scene`, `n` of each.
+fn rays(scene: &Scene, n: usize, seed: u64) -> Vec<(&'static str, Ray)> {
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let b = scene.bounds().expanded(0.05 * scene.bounds().diagonal());
+    let diag = scene.bounds().diagonal();
+    let objects = scene.objects().len();
+    let point = |rng: &mut Pcg64| b.lerp(Vec3::new(rng.random(), rng.random(), rng.random()));
+    let mut out = Vec::new();
+    for _ in 0..n {
+        let o = point(&mut rng);
+        out.push(("free", Ray::new(o, unit(&mut rng))));
+        // From a surface point: tmin steps off the surface.
+        let s = scene.sample_surface(rng.random_range(0..objects), &mut rng);
+        out.push((
+            "from surface",
+            Ray::new(s, unit(&mut rng)).with_tmin(1e-4 * diag),
+        ));
+        // Bounded: a random maximum distance.
+        let o = point(&mut rng);
+        let tmax = rng.random_range(0.0..0.5f32) * diag;
+        out.push(("bounded", Ray::new(o, unit(&mut rng)).with_tmax(tmax)));
+        // The builder's sample: a cell point to an object's surface point.
+        let o = point(&mut rng);
+        let q = scene.sample_surface(rng.random_range(0..objects), &mut rng);
+        out.push(("to surface", Ray::segment(o, q).with_tmax(1.0 + 1e-4)));
+        // Along an axis, both signs (negative zeros included).
+        let o = point(&mut rng);
+        let axis = [Vec3::X, Vec3::Y, Vec3::Z][rng.random_range(0..3usize)];
+        let dir = if rng.random_bool(0.5) { axis } else { -axis };
+        out.push(("axis", Ray::new(o, dir)));
+    }
+    out
+}
+
+fn check_exact(scene: &Scene, n: usize, seed: u64) {
+    scene.validate().unwrap();
+    let tracer = Tracer::new(scene);
+    let rays = rays(scene, n, seed);
+    let mut hits = 0;
+    for (kind, ray) in &rays {
+        let got = tracer.closest_hit(ray);
+        let want = brute_force_closest_hit(scene, ray);
+        assert_eq!(got, want, "{kind} ray {ray:?}");
+        if let Some(h) = got {
+            hits += 1;
+            assert!(h.t >= ray.tmin && h.t <= ray.tmax);
+            assert_eq!(scene.object_of_triangle(h.triangle), h.object as usize);
+        }
+    }
+    // The test means something only if most rays hit.
+    assert!(
+        hits > rays.len() / 3,
+        "only {hits} of {} rays hit",
+        rays.len()
+    );
+    // The parallel batch gives the same answers in the same order.
+    let plain: Vec<Ray> = rays.iter().map(|(_, r)| *r).collect();
+    let batch = tracer.closest_hits(&plain);
+    for (r, h) in plain.iter().zip(&batch) {
+        assert_eq!(*h, tracer.closest_hit(r));
+    }
+}
+
+/// Rays of each kind per scene: `VIS5D_TRACE_RAYS` raises it for a soak
+/// run (notes/trace.md gives the largest run made).
+fn rays_per_kind(default: usize) -> usize {
+    std::env::var("VIS5D_TRACE_RAYS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+#[test]
+fn exact_on_the_committed_scenes() {
+    for (k, name) in ["apartment", "forest", "city", "machine", "office"]
+        .iter()
+        .enumerate()
+    {
+        let s = scene::load(crate::committed(&format!("{name}.obj"))).unwrap();
+        check_exact(&s, rays_per_kind(600), k as u64);
+    }
+}
+
+/// The real scene `apartment_morse` by default; `VIS5D_TRACE_SCENES`
+/// (comma-separated paths under `../shared/scenes/`) names others for a
+/// soak run.
+#[test]
+fn exact_on_real_scenes() {
+    let list = std::env::var("VIS5D_TRACE_SCENES")
+        .unwrap_or_else(|_| "apartment_morse/apartment.obj".to_owned());
+    for (k, file) in list.split(',').enumerate() {
+        let path = crate::shared_scenes().join(file);
+        if !path.exists() {
+            eprintln!("skipped: {} is not here", path.display());
+            continue;
+        }
+        let s = scene::load(&path).unwrap();
+        check_exact(&s, rays_per_kind(400), 99 + k as u64);
+    }
+}
+
+#[test]
+fn a_sealed_room_sees_only_its_walls() {
+    // From inside the closed apartment, every ray in every direction hits
+    // something and nothing escapes: known by construction.
+    let s = scene::load(crate::committed("apartment.obj")).unwrap();
+    let tracer = Tracer::new(&s);
+    let mut rng = Pcg64::seed_from_u64(3);
+    let inside = vis5d::geom::Aabb::new(Vec3::new(0.2, 0.2, 0.05), Vec3::new(10.2, 5.1, 2.55));
+    for _ in 0..5_000 {
+        let o = inside.lerp(Vec3::new(rng.random(), rng.random(), rng.random()));
+        let r = Ray::new(o, unit(&mut rng));
+        let h = tracer
+            .closest_hit(&r)
+            .unwrap_or_else(|| panic!("{r:?} escaped"));
+        assert!(s.bounds().contains(r.at(h.t)));
+    }
+}
