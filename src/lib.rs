@@ -40,8 +40,16 @@
 
 #![warn(missing_docs)]
 
+pub mod bitset;
+#[cfg(feature = "builder")]
+pub mod build;
 pub mod geom;
+#[cfg(feature = "builder")]
+pub mod sample;
 #[cfg(feature = "builder")]
 pub mod scene;
 #[cfg(feature = "builder")]
+pub mod sprt;
+#[cfg(feature = "builder")]
 pub mod trace;
+pub mod tree;

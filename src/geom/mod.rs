@@ -5,5 +5,7 @@
 //! can use it with `default-features = false`.
 
 mod aabb;
+pub mod cell;
 
 pub use aabb::Aabb;
+pub use cell::Cell;

@@ -125,3 +125,69 @@ fn scene_writes_the_committed_file() {
     // Nothing but the output is left in the folder (no temporary file).
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 }
+
+#[test]
+fn build_reports_and_writes_nothing_yet() {
+    let out = vis5d(&[
+        "build",
+        "scenes/machine.obj",
+        "--json",
+        "--max-depth",
+        "6",
+        "--verify-views",
+        "5",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["objects"], 146);
+    assert!(v["leaves"].as_u64().unwrap() > 1);
+    assert!(v["depth"].as_u64().unwrap() <= 6);
+    assert!(v["rays_cast"].as_u64().unwrap() > 0);
+    assert!(v["decisions"]["proven_by_hit"].as_u64().unwrap() > 0);
+    assert!(v["pixel_error"]["hit_pixels"].as_u64().unwrap() > 0);
+    assert_eq!(v["written"], serde_json::Value::Null);
+    let out = vis5d(&["build", "scenes/machine.obj", "--max-depth", "4"]);
+    assert!(out.status.success());
+    let t = text(&out.stdout);
+    for want in [
+        "leaves",
+        "proven by a hit",
+        "invisible by SPRT",
+        "tracing",
+        "nothing written",
+    ] {
+        assert!(t.contains(want), "{t}");
+    }
+}
+
+#[test]
+fn build_refuses_bad_flags() {
+    for (args, want) in [
+        (
+            vec!["build", "scenes/machine.obj", "--angular-leaves", "3"],
+            "power of two",
+        ),
+        (
+            vec!["build", "scenes/machine.obj", "--view-box", "0,0,0,1,1"],
+            "expected 6 numbers",
+        ),
+        (
+            vec!["build", "scenes/machine.obj", "--view-box", "1,1,1,0,0,0"],
+            "x0 < x1",
+        ),
+        (
+            vec!["build", "scenes/machine.obj", "--prior", "1"],
+            "two numbers",
+        ),
+        (
+            vec!["build", "scenes/machine.obj", "--s-thresh", "0.0001"],
+            "before any ray hits",
+        ),
+        (vec!["build", "missing.obj"], "missing.obj: cannot read"),
+    ] {
+        let out = vis5d(&args);
+        assert!(!out.status.success(), "{args:?}");
+        let err = text(&out.stderr);
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+}

@@ -4,11 +4,13 @@
 //! `../shared/scenes/` (real scenes made by others; CI has them beside the
 //! checkout). Every random generator is seeded.
 
+mod build;
 mod cli;
 mod gltf_load;
 mod obj_load;
 mod procedural;
 mod real_scenes;
+mod sprt;
 mod trace;
 
 use std::path::{Path, PathBuf};

@@ -1,0 +1,275 @@
+//! One node of the recursive build: the cache of cell rays, the set, the
+//! decision to split, the recursion (module docs of [`super`]).
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
+
+use super::{BuildParams, BuildStats, build_leaf, build_split, mix};
+use crate::bitset::ObjectSet;
+use crate::geom::cell::{Cell, DIMS, PHI, THETA, grid_value};
+use crate::sample::{cell_point, cell_ray};
+use crate::scene::Scene;
+use crate::trace::{Ray, Tracer};
+use crate::tree::{Node, Split};
+
+/// What every node of a build shares.
+pub(super) struct Ctx<'a> {
+    pub scene: &'a Scene,
+    pub tracer: &'a Tracer,
+    pub params: &'a BuildParams,
+    /// The smallest child extent per dimension.
+    pub min_width: [f32; DIMS],
+    /// Triangles per object.
+    pub triangles: Vec<u64>,
+    pub root_measure: f64,
+    /// Misses in a row an internal node needs before an object is
+    /// invisible (see [`BuildParams::internal_miss_factor`]).
+    pub internal_min_misses: u32,
+    /// Finished measure, in units of 2^-40 of the root's.
+    pub done: AtomicU64,
+    pub progress: &'a (dyn Fn(f64) + Sync),
+}
+
+impl Ctx<'_> {
+    /// Traces `rays` in parallel, timing it.
+    pub fn trace(&self, rays: &[Ray], stats: &mut BuildStats) -> Vec<Option<u32>> {
+        let start = Instant::now();
+        let hits = self.tracer.closest_hits(rays);
+        stats.trace_seconds += start.elapsed().as_secs_f64();
+        hits.into_iter().map(|h| h.map(|h| h.object)).collect()
+    }
+
+    fn finished(&self, cell: &Cell) {
+        let units = (cell.measure() / self.root_measure * (1u64 << 40) as f64) as u64;
+        let done = self.done.fetch_add(units, Ordering::Relaxed) + units;
+        (self.progress)(done as f64 / (1u64 << 40) as f64);
+    }
+
+    fn set_triangles(&self, set: &ObjectSet) -> u64 {
+        set.iter().map(|o| self.triangles[o]).sum()
+    }
+}
+
+/// A cached cell ray: its 5D point and the object its closest hit is on.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct CachedRay {
+    pub p: [f32; DIMS],
+    pub hit: Option<u32>,
+}
+
+/// Where a node stands in the recursion.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct NodeState {
+    depth: u32,
+    /// Forced angular cuts still to make below a final spatial cell
+    /// (`spatial_only`), or `None` while splits are still chosen by E.
+    angular_left: Option<u32>,
+}
+
+impl NodeState {
+    /// The root's state.
+    pub const ROOT: NodeState = NodeState {
+        depth: 0,
+        angular_left: None,
+    };
+}
+
+/// A built subtree, before flattening into preorder.
+pub(super) enum Built {
+    Leaf(ObjectSet),
+    Split {
+        dim: u8,
+        code: u32,
+        set: ObjectSet,
+        children: Box<[Built; 2]>,
+    },
+}
+
+impl Built {
+    fn set(&self) -> &ObjectSet {
+        match self {
+            Built::Leaf(s) | Built::Split { set: s, .. } => s,
+        }
+    }
+
+    /// Appends the subtree to `nodes` in preorder.
+    pub fn flatten_into(self, nodes: &mut Vec<Node>) {
+        match self {
+            Built::Leaf(set) => nodes.push(Node { split: None, set }),
+            Built::Split {
+                dim,
+                code,
+                set,
+                children,
+            } => {
+                let me = nodes.len();
+                nodes.push(Node { split: None, set });
+                let [below, above] = *children;
+                below.flatten_into(nodes);
+                let above_index = nodes.len() as u32;
+                above.flatten_into(nodes);
+                nodes[me].split = Some(Split {
+                    dim,
+                    code,
+                    above: above_index,
+                });
+            }
+        }
+    }
+}
+
+/// Builds the subtree of `cell`, whose candidates are `candidates` and
+/// whose cache so far is `cache` (rays inherited from the parent).
+pub(super) fn build_node(
+    ctx: &Ctx,
+    cell: Cell,
+    state: NodeState,
+    seed: u64,
+    candidates: &ObjectSet,
+    mut cache: Vec<CachedRay>,
+    stats: &mut BuildStats,
+) -> Built {
+    let params = ctx.params;
+    top_up_cache(ctx, &cell, seed, &mut cache, stats);
+    let mut proven = ObjectSet::new(candidates.capacity());
+    for r in &cache {
+        if let Some(o) = r.hit {
+            proven.insert(o as usize);
+        }
+    }
+    // Decide the split first: an internal node's set needs more evidence
+    // than a leaf's. "Visible triangles" are the candidates' (the parent's
+    // set): the best estimate before this cell's own set is known.
+    let split = match state.angular_left {
+        Some(0) => None,
+        Some(left) => Some(forced_angular_split(&cell, params, left)),
+        None => {
+            let chosen = if state.depth >= params.max_depth
+                || ctx.set_triangles(candidates) < params.min_visible_triangles
+            {
+                None
+            } else {
+                build_split::best_split(ctx, &cell, &cache)
+            };
+            match chosen {
+                Some(c) => Some((c.dim, c.code)),
+                None if params.spatial_only && params.angular_leaves > 1 => {
+                    let levels = params.angular_leaves.trailing_zeros();
+                    Some(forced_angular_split(&cell, params, levels))
+                }
+                None => None,
+            }
+        }
+    };
+    let min_misses = if split.is_some() {
+        ctx.internal_min_misses
+    } else {
+        0
+    };
+    let set = build_leaf::visible_set(ctx, &cell, candidates, proven, seed, min_misses, stats);
+    let Some((dim, code)) = split else {
+        ctx.finished(&cell);
+        return Built::Leaf(set);
+    };
+
+    let value = grid_value(cell.lo[dim], cell.hi[dim], code, params.grid_bits);
+    let (below_cell, above_cell) = cell.split(dim, value);
+    let (below_cache, above_cache): (Vec<_>, Vec<_>) =
+        cache.into_iter().partition(|r| r.p[dim] < value);
+    let child_state = NodeState {
+        depth: state.depth + 1,
+        angular_left: match state.angular_left {
+            Some(left) => Some(left - 1),
+            None if dim >= THETA && params.spatial_only => {
+                Some(params.angular_leaves.trailing_zeros() - 1)
+            }
+            None => None,
+        },
+    };
+    let mut below_stats = BuildStats::default();
+    let mut above_stats = BuildStats::default();
+    let (below, above) = rayon::join(
+        || {
+            build_node(
+                ctx,
+                below_cell,
+                child_state,
+                mix(seed, 1),
+                &set,
+                below_cache,
+                &mut below_stats,
+            )
+        },
+        || {
+            build_node(
+                ctx,
+                above_cell,
+                child_state,
+                mix(seed, 2),
+                &set,
+                above_cache,
+                &mut above_stats,
+            )
+        },
+    );
+    stats.add(&below_stats);
+    stats.add(&above_stats);
+    let mut union = below.set().clone();
+    union.union_with(above.set());
+    Built::Split {
+        dim: dim as u8,
+        code,
+        set: union,
+        children: Box::new([below, above]),
+    }
+}
+
+/// The forced cut that makes angular leaves, `left` cuts before the
+/// leaves: theta and phi alternate from the first cut (theta), theta at its
+/// midpoint, phi at the midpoint of cos phi (equal solid angle), both on
+/// the grid.
+fn forced_angular_split(cell: &Cell, params: &BuildParams, left: u32) -> (usize, u32) {
+    let q = params.grid_bits;
+    let half = 1u32 << (q - 1);
+    let levels = params.angular_leaves.trailing_zeros();
+    // Level 0 (the first cut) is theta, then phi, then theta...
+    let level = levels - left;
+    if level.is_multiple_of(2) {
+        return (THETA, half);
+    }
+    let (lo, hi) = (cell.lo[PHI], cell.hi[PHI]);
+    let mid = ((lo.cos() + hi.cos()) * 0.5).acos();
+    let code = (((mid - lo) / (hi - lo)) * (1u32 << q) as f32).round() as u32;
+    (PHI, code.clamp(1, (1 << q) - 1))
+}
+
+/// Adds new uniform cell rays to `cache` until it holds
+/// `params.cache_rays`, and traces them.
+fn top_up_cache(
+    ctx: &Ctx,
+    cell: &Cell,
+    seed: u64,
+    cache: &mut Vec<CachedRay>,
+    stats: &mut BuildStats,
+) {
+    let want = ctx.params.cache_rays as usize;
+    if cache.len() >= want {
+        return;
+    }
+    let mut rng = Pcg64::seed_from_u64(mix(seed, u64::MAX));
+    let points: Vec<[f32; DIMS]> = (cache.len()..want)
+        .map(|_| cell_point(cell, &mut rng))
+        .collect();
+    let rays: Vec<Ray> = points.iter().map(cell_ray).collect();
+    let hits = ctx.trace(&rays, stats);
+    stats.cell_rays += rays.len() as u64;
+    cache.extend(
+        points
+            .into_iter()
+            .zip(hits)
+            .map(|(p, hit)| CachedRay { p, hit }),
+    );
+}

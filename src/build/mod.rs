@@ -1,0 +1,374 @@
+//! The builder: the 5D k-d tree of visible sets of papers/003 sec. 4-5,
+//! built by ray sampling.
+//!
+//! Recursively, for a cell C with candidate objects (the parent's set; all
+//! objects at the root):
+//! 1. top up C's cache of uniform cell rays (those of the parent that fall
+//!    in C are kept: the paper's "re-use rays cast to determine an inner
+//!    node's partitioning", sec. 9) and trace them; every object a cached
+//!    ray hits is proven visible ([`build_node`]);
+//! 2. decide the other candidates by the SPRT on object samples
+//!    ([`build_leaf`]): C's set;
+//! 3. stop on the depth limit, on too few visible triangles (the paper's
+//!    "split only if at least 500 polygons are visible"), or when no
+//!    candidate split scores E(A, B) above the threshold
+//!    ([`build_split`]); otherwise split, hand each child its half of the
+//!    cache and C's set as candidates, build both in parallel, and make C's
+//!    set the union of theirs.
+//!
+//! With `spatial_only`, only x, y, z are split, and each final cell is cut
+//! into `angular_leaves` angular intervals (the paper's apartment used 8).
+//!
+//! Invariants: a child's set is a subset of its parent's and an internal
+//! set is the union of its children's (so [`VisTree::validate`] holds);
+//! every random number comes from a stream seeded by (seed, node path,
+//! object), so the tree is the same for any thread count.
+//!
+//! Note: deviation from the paper: an object is in a cell's set as soon as
+//! any ray of the cell proves it visible (its own samples or any other
+//! ray); the SPRT decides only the objects that no ray has hit, so it only
+//! ever says "invisible" or runs into its cap. The paper could declare an
+//! object invisible after seeing it hit (visible fraction below
+//! s_thresh): that is popping, which vis5d does not trade for tightness.
+
+mod build_leaf;
+mod build_node;
+mod build_split;
+mod build_verify;
+
+use std::sync::atomic::AtomicU64;
+use std::time::Instant;
+
+pub use build_verify::{PixelError, VerifyParams, pixel_error, view_rays};
+
+use crate::bitset::ObjectSet;
+use crate::geom::Aabb;
+use crate::geom::cell::{Cell, THETA};
+use crate::scene::Scene;
+use crate::sprt::SprtParams;
+use crate::trace::Tracer;
+use crate::tree::VisTree;
+
+/// Every parameter of a build. [`BuildParams::default`] is the measured
+/// default (notes/build.md says how each value was chosen).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BuildParams {
+    /// The sequential test deciding objects that no ray has hit.
+    pub sprt: SprtParams,
+    /// An internal node declares an object invisible only after this many
+    /// times the misses in a row that the SPRT needs on its own: every cell
+    /// below inherits the verdict, so an object visible from a small part
+    /// of the cell must not be dropped on thin evidence.
+    pub internal_miss_factor: u32,
+    /// Uniform cell rays cached per cell to score splits and prove
+    /// visibility (parents hand theirs down).
+    pub cache_rays: u32,
+    /// A split is made only if its effectiveness E(A, B) exceeds this.
+    pub split_threshold: f64,
+    /// The deepest a leaf may be (splits from the root).
+    pub max_depth: u32,
+    /// The smallest child in x, y and z, as a fraction of the root's
+    /// extent in that dimension.
+    pub min_cell_fraction: f32,
+    /// The smallest child in theta and phi, as a fraction of the full range
+    /// (2 pi, pi).
+    pub min_angle_fraction: f32,
+    /// A cell is split only if its set holds at least this many
+    /// triangles.
+    pub min_visible_triangles: u64,
+    /// Split x, y, z only (then cut leaves into `angular_leaves`).
+    pub spatial_only: bool,
+    /// With `spatial_only`: the number of angular intervals (a power of
+    /// two) each spatial leaf is cut into. 1 = no cut.
+    pub angular_leaves: u32,
+    /// Candidate split values tried per angular dimension (equal-measure
+    /// quantiles).
+    pub angular_candidates: u32,
+    /// q: split values lie on a 2^q grid of the node's range.
+    pub grid_bits: u32,
+    /// Object samples rejected (direction outside the angular box) per
+    /// object and cell, after which the object is kept as visible
+    /// undecided.
+    pub rejection_budget: u32,
+    /// The positions to build for; `None` = the scene's bounding box.
+    pub view_box: Option<Aabb>,
+    /// The view box is grown by this fraction of its diagonal on every
+    /// side.
+    pub view_grow: f32,
+    /// The seed of every random stream.
+    pub seed: u64,
+}
+
+impl Default for BuildParams {
+    fn default() -> Self {
+        Self {
+            sprt: SprtParams {
+                s_thresh: 0.01,
+                accept: 50.0,
+                reject: 0.2,
+                prior_a: 1.0,
+                prior_b: 50.0,
+                max_rays: 2000,
+            },
+            internal_miss_factor: 1,
+            cache_rays: 2048,
+            split_threshold: 0.3,
+            max_depth: 12,
+            min_cell_fraction: 1.0 / 64.0,
+            min_angle_fraction: 1.0 / 16.0,
+            min_visible_triangles: 500,
+            spatial_only: false,
+            angular_leaves: 1,
+            angular_candidates: 3,
+            grid_bits: 10,
+            rejection_budget: 4096,
+            view_box: None,
+            view_grow: 0.0,
+            seed: 1,
+        }
+    }
+}
+
+impl BuildParams {
+    /// Checks every parameter; says which is wrong and why.
+    pub fn check(&self) -> Result<(), String> {
+        self.sprt.check()?;
+        if !self.sprt.misses_mean_invisible() {
+            return Err(format!(
+                "with s_thresh {} and prior Beta({}, {}) the SPRT's odds after a miss are above \
+                 A = {}: it would call objects visible before any ray hits them; raise A or \
+                 prior_b",
+                self.sprt.s_thresh, self.sprt.prior_a, self.sprt.prior_b, self.sprt.accept
+            ));
+        }
+        if self.internal_miss_factor == 0 {
+            return Err("internal_miss_factor must be at least 1".into());
+        }
+        if self.cache_rays == 0 {
+            return Err("cache_rays must be at least 1".into());
+        }
+        if !(0.0..1.0).contains(&self.split_threshold) {
+            return Err(format!(
+                "the split threshold must be in [0, 1), not {}",
+                self.split_threshold
+            ));
+        }
+        for (name, f) in [
+            ("min_cell_fraction", self.min_cell_fraction),
+            ("min_angle_fraction", self.min_angle_fraction),
+        ] {
+            if !(f > 0.0 && f < 0.5) {
+                return Err(format!("{name} must be in (0, 0.5), not {f}"));
+            }
+        }
+        if !self.angular_leaves.is_power_of_two() {
+            return Err(format!(
+                "angular_leaves must be a power of two, not {}",
+                self.angular_leaves
+            ));
+        }
+        if !(1..=16).contains(&self.grid_bits) {
+            return Err(format!(
+                "grid_bits must be in 1..=16, not {}",
+                self.grid_bits
+            ));
+        }
+        if !(self.view_grow >= 0.0 && self.view_grow.is_finite()) {
+            return Err(format!(
+                "the view box growth must be >= 0, not {}",
+                self.view_grow
+            ));
+        }
+        if let Some(b) = self.view_box
+            && !(b.min.is_finite() && b.max.is_finite() && b.min.cmplt(b.max).all())
+        {
+            return Err(format!(
+                "the view box must have min < max in x, y and z: {b:?}"
+            ));
+        }
+        Ok(())
+    }
+
+    /// The spatial box of the root cell for `scene`.
+    pub fn root_box(&self, scene: &Scene) -> Aabb {
+        let b = self.view_box.unwrap_or(scene.bounds());
+        b.expanded(self.view_grow * b.diagonal())
+    }
+}
+
+/// How the candidate objects of the cells were decided, summed over all
+/// cells (internal nodes included).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Decisions {
+    /// Proven visible by a ray's closest hit (a cached cell ray, the
+    /// object's own sample, or another object's sample).
+    pub proven_by_hit: u64,
+    /// Declared invisible by the SPRT.
+    pub sprt_invisible: u64,
+    /// The SPRT reached its ray cap: kept as visible.
+    pub cap_reached: u64,
+    /// Invisible by geometry: no direction of the cell reaches the
+    /// object's bounding box.
+    pub geometry_invisible: u64,
+    /// Almost every sample was rejected (rejection budget spent): kept as
+    /// visible.
+    pub rejection_kept: u64,
+}
+
+impl Decisions {
+    fn add(&mut self, o: &Decisions) {
+        self.proven_by_hit += o.proven_by_hit;
+        self.sprt_invisible += o.sprt_invisible;
+        self.cap_reached += o.cap_reached;
+        self.geometry_invisible += o.geometry_invisible;
+        self.rejection_kept += o.rejection_kept;
+    }
+}
+
+/// What a build did, counted where it happened.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BuildStats {
+    /// Uniform cell rays cast (the split caches).
+    pub cell_rays: u64,
+    /// Object sample rays cast (the SPRTs).
+    pub object_rays: u64,
+    /// Object samples rejected: direction outside the angular box.
+    pub rejected: u64,
+    /// Decisions by kind.
+    pub decisions: Decisions,
+    /// Seconds spent inside the tracer, summed over threads.
+    pub trace_seconds: f64,
+    /// Wall-clock seconds of the whole build (BVH excluded).
+    pub seconds: f64,
+}
+
+impl BuildStats {
+    fn add(&mut self, o: &BuildStats) {
+        self.cell_rays += o.cell_rays;
+        self.object_rays += o.object_rays;
+        self.rejected += o.rejected;
+        self.decisions.add(&o.decisions);
+        self.trace_seconds += o.trace_seconds;
+    }
+
+    /// All rays cast.
+    pub fn rays(&self) -> u64 {
+        self.cell_rays + self.object_rays
+    }
+}
+
+/// The shape of a built tree and its sets.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TreeSummary {
+    /// All nodes.
+    pub nodes: usize,
+    /// Leaves.
+    pub leaves: usize,
+    /// The deepest leaf.
+    pub depth: u32,
+    /// The mean number of objects in a leaf's set.
+    pub mean_leaf_objects: f64,
+    /// The largest leaf set, in objects.
+    pub max_leaf_objects: usize,
+    /// The mean number of triangles in a leaf's set.
+    pub mean_leaf_triangles: f64,
+    /// The largest leaf set, in triangles.
+    pub max_leaf_triangles: u64,
+    /// The mean leaf set in objects, weighted by the leaves' measure: the
+    /// expected set of a random view ray.
+    pub measure_weighted_objects: f64,
+}
+
+/// Summarises `tree` built for `scene`.
+pub fn summarize(tree: &VisTree, scene: &Scene) -> TreeSummary {
+    let tris: Vec<u64> = scene
+        .objects()
+        .iter()
+        .map(|o| o.triangle_count() as u64)
+        .collect();
+    let leaves = tree.leaves();
+    let root = tree.root_cell().measure();
+    let mut s = TreeSummary {
+        nodes: tree.nodes().len(),
+        leaves: leaves.len(),
+        ..Default::default()
+    };
+    for l in &leaves {
+        let set = &tree.nodes()[l.node].set;
+        let n = set.count();
+        let t: u64 = set.iter().map(|o| tris[o]).sum();
+        s.depth = s.depth.max(l.depth);
+        s.mean_leaf_objects += n as f64;
+        s.mean_leaf_triangles += t as f64;
+        s.max_leaf_objects = s.max_leaf_objects.max(n);
+        s.max_leaf_triangles = s.max_leaf_triangles.max(t);
+        s.measure_weighted_objects += n as f64 * l.cell.measure() / root;
+    }
+    s.mean_leaf_objects /= leaves.len() as f64;
+    s.mean_leaf_triangles /= leaves.len() as f64;
+    s
+}
+
+/// Builds the tree of `scene` traced by `tracer` (built from the same
+/// scene). `progress` is called with the fraction of view space finished
+/// (by measure), from any thread.
+pub fn build(
+    scene: &Scene,
+    tracer: &Tracer,
+    params: &BuildParams,
+    progress: &(dyn Fn(f64) + Sync),
+) -> Result<(VisTree, BuildStats), String> {
+    params.check()?;
+    let start = Instant::now();
+    let root = Cell::all_directions(params.root_box(scene));
+    let ctx = build_node::Ctx {
+        scene,
+        tracer,
+        params,
+        min_width: std::array::from_fn(|d| {
+            let f = if d < THETA {
+                params.min_cell_fraction
+            } else {
+                params.min_angle_fraction
+            };
+            root.width(d) * f
+        }),
+        triangles: scene
+            .objects()
+            .iter()
+            .map(|o| o.triangle_count() as u64)
+            .collect(),
+        root_measure: root.measure(),
+        internal_min_misses: params
+            .sprt
+            .misses_to_invisible()
+            .saturating_mul(params.internal_miss_factor),
+        done: AtomicU64::new(0),
+        progress,
+    };
+    let candidates = ObjectSet::full(scene.objects().len());
+    let mut stats = BuildStats::default();
+    let built = build_node::build_node(
+        &ctx,
+        root,
+        build_node::NodeState::ROOT,
+        params.seed,
+        &candidates,
+        Vec::new(),
+        &mut stats,
+    );
+    let mut nodes = Vec::new();
+    built.flatten_into(&mut nodes);
+    let tree = VisTree::from_parts(root, params.grid_bits, scene.objects().len(), nodes);
+    stats.seconds = start.elapsed().as_secs_f64();
+    Ok((tree, stats))
+}
+
+/// A 64-bit mix of two values (splitmix64 finaliser): seeds of the random
+/// streams of nodes and objects.
+pub(crate) fn mix(a: u64, b: u64) -> u64 {
+    let mut z = a ^ b.wrapping_mul(0x9E37_79B9_7F4A_7C15).rotate_left(17);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}

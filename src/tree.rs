@@ -1,0 +1,319 @@
+//! The visibility tree in memory: a k-d tree over 5D view space whose every
+//! node holds a potentially visible set (papers/003 sec. 4).
+//!
+//! Nodes are stored in preorder: node 0 is the root, an internal node's
+//! first child ("below": `[lo, value)`) follows it, and its second child
+//! ("above": `[value, hi)`) is at `Split::above`. A split is a dimension
+//! and a code `k` on the q-bit grid of the node's range in that dimension:
+//! the value is [`grid_value`]`(lo, hi, k, q)`, so cells are never stored,
+//! only replayed from the root, and the decoder (issue #4) replays exactly
+//! the builder's floats.
+//!
+//! Invariants ([`VisTree::validate`]): the preorder layout is consistent;
+//! codes lie in `1..2^q`, so both children are non-empty; a child's set is
+//! a subset of its parent's and an internal node's set is the union of its
+//! children's; the leaves' cells tile the root (their measures sum to the
+//! root's).
+
+use crate::bitset::ObjectSet;
+use crate::geom::cell::{Cell, DIMS, grid_value};
+
+/// How a node is cut.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Split {
+    /// The dimension: 0..3 = x, y, z, 3 = theta, 4 = phi.
+    pub dim: u8,
+    /// The split value's position on the q-bit grid of the node's range,
+    /// in `1..2^q`.
+    pub code: u32,
+    /// The index of the second child (the first is the next node).
+    pub above: u32,
+}
+
+/// One node: a set, and a split unless it is a leaf.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Node {
+    /// `None` for a leaf.
+    pub split: Option<Split>,
+    /// The objects visible from some ray of the node's cell.
+    pub set: ObjectSet,
+}
+
+/// A leaf with its cell, as [`VisTree::leaves`] lists them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LeafCell {
+    /// The node index.
+    pub node: usize,
+    /// The node's cell.
+    pub cell: Cell,
+    /// The number of splits above it.
+    pub depth: u32,
+}
+
+/// A 5D k-d tree of visible sets.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VisTree {
+    root: Cell,
+    grid_bits: u32,
+    objects: usize,
+    nodes: Vec<Node>,
+}
+
+impl VisTree {
+    /// A tree from its parts (not checked: call [`VisTree::validate`]).
+    pub fn from_parts(root: Cell, grid_bits: u32, objects: usize, nodes: Vec<Node>) -> Self {
+        Self {
+            root,
+            grid_bits,
+            objects,
+            nodes,
+        }
+    }
+
+    /// The root cell: the view box times all directions.
+    pub fn root_cell(&self) -> Cell {
+        self.root
+    }
+
+    /// q: the bits of every split code.
+    pub fn grid_bits(&self) -> u32 {
+        self.grid_bits
+    }
+
+    /// The number of objects the sets range over.
+    pub fn object_count(&self) -> usize {
+        self.objects
+    }
+
+    /// The nodes in preorder.
+    pub fn nodes(&self) -> &[Node] {
+        &self.nodes
+    }
+
+    /// The number of leaves.
+    pub fn leaf_count(&self) -> usize {
+        self.nodes.iter().filter(|n| n.split.is_none()).count()
+    }
+
+    /// The split value of `split` in `cell`.
+    pub fn split_value(&self, cell: &Cell, split: &Split) -> f32 {
+        let d = split.dim as usize;
+        grid_value(cell.lo[d], cell.hi[d], split.code, self.grid_bits)
+    }
+
+    /// The leaf whose cell holds the ray point `p` = (x, y, z, theta, phi):
+    /// below the split value goes to the first child, at or above it to
+    /// the second. Points outside the root go to the nearest leaf.
+    pub fn locate(&self, p: [f32; DIMS]) -> usize {
+        let mut i = 0;
+        let mut cell = self.root;
+        while let Some(s) = self.nodes[i].split {
+            let v = self.split_value(&cell, &s);
+            let (below, above) = cell.split(s.dim as usize, v);
+            if p[s.dim as usize] < v {
+                i += 1;
+                cell = below;
+            } else {
+                i = s.above as usize;
+                cell = above;
+            }
+        }
+        i
+    }
+
+    /// Every leaf with its cell and depth, in preorder.
+    pub fn leaves(&self) -> Vec<LeafCell> {
+        let mut out = Vec::new();
+        let mut stack = vec![(0usize, self.root, 0u32)];
+        while let Some((i, cell, depth)) = stack.pop() {
+            match self.nodes[i].split {
+                None => out.push(LeafCell {
+                    node: i,
+                    cell,
+                    depth,
+                }),
+                Some(s) => {
+                    let (below, above) = cell.split(s.dim as usize, self.split_value(&cell, &s));
+                    stack.push((s.above as usize, above, depth + 1));
+                    stack.push((i + 1, below, depth + 1));
+                }
+            }
+        }
+        out
+    }
+
+    /// The largest leaf depth.
+    pub fn depth(&self) -> u32 {
+        self.leaves().iter().map(|l| l.depth).max().unwrap_or(0)
+    }
+
+    /// Checks the invariants of the module docs; returns the first broken
+    /// one.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.nodes.is_empty() {
+            return Err("the tree has no node".into());
+        }
+        if !(1..=24).contains(&self.grid_bits) {
+            return Err(format!("grid bits {} outside 1..=24", self.grid_bits));
+        }
+        let end = self.check_subtree(0, self.root)?;
+        if end != self.nodes.len() {
+            return Err(format!(
+                "{} nodes but the preorder covers {end}",
+                self.nodes.len()
+            ));
+        }
+        let total: f64 = self.leaves().iter().map(|l| l.cell.measure()).sum();
+        let root = self.root.measure();
+        if (total - root).abs() > 1e-6 * root.max(1e-30) {
+            return Err(format!(
+                "leaf measures sum to {total}, the root's is {root}"
+            ));
+        }
+        Ok(())
+    }
+
+    /// Checks the subtree at `i` with cell `cell`; returns the index after
+    /// its last node.
+    fn check_subtree(&self, i: usize, cell: Cell) -> Result<usize, String> {
+        let node = self
+            .nodes
+            .get(i)
+            .ok_or_else(|| format!("node {i} is missing"))?;
+        if node.set.capacity() != self.objects {
+            return Err(format!(
+                "node {i} has a set over {} objects",
+                node.set.capacity()
+            ));
+        }
+        let Some(s) = node.split else {
+            return Ok(i + 1);
+        };
+        let d = s.dim as usize;
+        if d >= DIMS || s.code == 0 || s.code >= 1 << self.grid_bits {
+            return Err(format!("node {i} has split dim {} code {}", s.dim, s.code));
+        }
+        let v = self.split_value(&cell, &s);
+        if !(v > cell.lo[d] && v < cell.hi[d]) {
+            return Err(format!(
+                "node {i} splits {} at {v} outside ({}, {})",
+                d, cell.lo[d], cell.hi[d]
+            ));
+        }
+        let (below, above) = cell.split(d, v);
+        let mid = self.check_subtree(i + 1, below)?;
+        if s.above as usize != mid {
+            return Err(format!(
+                "node {i}: second child at {} but the first ends at {mid}",
+                s.above
+            ));
+        }
+        let end = self.check_subtree(mid, above)?;
+        let (a, b) = (&self.nodes[i + 1].set, &self.nodes[mid].set);
+        if !a.is_subset(&node.set) || !b.is_subset(&node.set) {
+            return Err(format!(
+                "node {i}: a child's set is not a subset of the parent's"
+            ));
+        }
+        let mut union = a.clone();
+        union.union_with(b);
+        if union != node.set {
+            return Err(format!(
+                "node {i}: the set is not the union of the children's"
+            ));
+        }
+        Ok(end)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::Aabb;
+    use crate::geom::cell::THETA;
+    use glam::Vec3;
+
+    fn set(n: usize, items: &[usize]) -> ObjectSet {
+        let mut s = ObjectSet::new(n);
+        for &i in items {
+            s.insert(i);
+        }
+        s
+    }
+
+    /// Root split on x at 1/2, its upper half split on theta at 1/4.
+    fn small_tree() -> VisTree {
+        let root = Cell::all_directions(Aabb::new(Vec3::ZERO, Vec3::splat(4.0)));
+        let nodes = vec![
+            Node {
+                split: Some(Split {
+                    dim: 0,
+                    code: 2,
+                    above: 2,
+                }),
+                set: set(3, &[0, 1, 2]),
+            },
+            Node {
+                split: None,
+                set: set(3, &[0]),
+            },
+            Node {
+                split: Some(Split {
+                    dim: THETA as u8,
+                    code: 1,
+                    above: 4,
+                }),
+                set: set(3, &[1, 2]),
+            },
+            Node {
+                split: None,
+                set: set(3, &[1]),
+            },
+            Node {
+                split: None,
+                set: set(3, &[2]),
+            },
+        ];
+        VisTree::from_parts(root, 2, 3, nodes)
+    }
+
+    #[test]
+    fn locate_and_leaves() {
+        let t = small_tree();
+        t.validate().unwrap();
+        assert_eq!(t.leaf_count(), 3);
+        assert_eq!(t.depth(), 2);
+        assert_eq!(t.locate([1.0, 1.0, 1.0, 0.0, 1.0]), 1);
+        // x = 2 is the split value: it goes above.
+        assert_eq!(t.locate([2.0, 1.0, 1.0, -3.0, 1.0]), 3);
+        assert_eq!(t.locate([3.0, 1.0, 1.0, 0.0, 1.0]), 4);
+        let leaves = t.leaves();
+        assert_eq!(leaves.iter().map(|l| l.node).collect::<Vec<_>>(), [1, 3, 4]);
+        assert_eq!(leaves[1].cell.hi[THETA], -std::f32::consts::PI / 2.0);
+    }
+
+    #[test]
+    fn validate_catches_broken_trees() {
+        let mut t = small_tree();
+        t.nodes[0].set.remove(2);
+        assert!(t.validate().unwrap_err().contains("subset"));
+        let mut t = small_tree();
+        t.nodes[0].set = set(3, &[0, 1]);
+        t.nodes[2].set = set(3, &[1]);
+        assert!(t.validate().is_err());
+        let mut t = small_tree();
+        t.nodes[0].split = Some(Split {
+            dim: 0,
+            code: 4,
+            above: 2,
+        });
+        assert!(t.validate().unwrap_err().contains("code"));
+        let mut t = small_tree();
+        t.nodes[0].split = Some(Split {
+            dim: 0,
+            code: 2,
+            above: 3,
+        });
+        assert!(t.validate().is_err());
+    }
+}
