@@ -20,7 +20,7 @@ use rand::{Rng, RngExt};
 
 use crate::geom::Aabb;
 use crate::geom::cell::{
-    Cell, DIMS, angles_to_direction, direction_bounds, direction_to_angles, directions_meet,
+    AngularBox, Cell, DIMS, angles_to_direction, direction_bounds, directions_meet,
 };
 use crate::scene::Scene;
 use crate::trace::Ray;
@@ -54,15 +54,22 @@ pub fn object_sample<R: Rng + ?Sized>(
     object: usize,
     rng: &mut R,
 ) -> Option<Ray> {
+    object_sample_in(scene, cell, &cell.angular_box(), object, rng)
+}
+
+/// [`object_sample`] with the cell's angular box test computed once.
+fn object_sample_in<R: Rng + ?Sized>(
+    scene: &Scene,
+    cell: &Cell,
+    angles: &AngularBox,
+    object: usize,
+    rng: &mut R,
+) -> Option<Ray> {
     let space = cell.space();
     let p = space.lerp(Vec3::new(rng.random(), rng.random(), rng.random()));
     let q = scene.sample_surface(object, rng);
     let d = q - p;
-    if d == Vec3::ZERO {
-        return None;
-    }
-    let (theta, phi) = direction_to_angles(d);
-    cell.contains_angles(theta, phi)
+    (d != Vec3::ZERO && angles.contains(d))
         .then(|| Ray::segment(p, q).with_tmax(1.0 + SEGMENT_SLACK))
 }
 
@@ -111,13 +118,23 @@ pub fn object_sample_from_target<R: Rng + ?Sized>(
 /// ([`object_sample_from_target`]) draws by their acceptance so far: each
 /// is tried at least 8 times, then the better one (by Laplace estimate) is
 /// used, the other still one draw in 16.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 pub struct AdaptiveSampler {
+    angles: AngularBox,
     tries: [u32; 2],
     accepted: [u32; 2],
 }
 
 impl AdaptiveSampler {
+    /// A sampler for objects seen from `cell`.
+    pub fn new(cell: &Cell) -> Self {
+        Self {
+            angles: cell.angular_box(),
+            tries: [0; 2],
+            accepted: [0; 2],
+        }
+    }
+
     /// Draws made so far.
     pub fn tries(&self) -> u32 {
         self.tries[0] + self.tries[1]
@@ -133,7 +150,7 @@ impl AdaptiveSampler {
     /// would take thousands of draws per ray; the builder keeps it instead.
     pub fn hopeless(&self) -> bool {
         let t = self.tries();
-        t >= 128 && self.accepted() * 32 < t
+        t >= 64 && self.accepted() * 16 < t
     }
 
     /// One draw: a ray, or `None` when it was rejected.
@@ -157,7 +174,7 @@ impl AdaptiveSampler {
             }
         };
         let r = if k == 0 {
-            object_sample(scene, cell, object, rng)
+            object_sample_in(scene, cell, &self.angles, object, rng)
         } else {
             object_sample_from_target(scene, cell, object, rng)
         };
@@ -176,7 +193,7 @@ pub fn reachable(cell: &Cell, bounds: &Aabb) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::cell::{PHI, THETA};
+    use crate::geom::cell::{PHI, THETA, direction_to_angles};
     use crate::scene::{SceneBuilder, SceneFormat};
     use rand::SeedableRng;
     use std::f32::consts::PI;

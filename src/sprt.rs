@@ -81,11 +81,19 @@ impl SprtParams {
     /// invisible at the smallest r with
     /// `(1 - s_thresh)^(r + prior_b) < B / (1 + B)`.
     pub fn misses_to_invisible(&self) -> u32 {
+        self.misses_decision().0
+    }
+
+    /// What the test decides on a run of misses, and after how many: the
+    /// whole story for an object no ray has hit, computed once by running
+    /// the test (the builder then counts misses instead of evaluating the
+    /// incomplete beta function per ray).
+    pub fn misses_decision(&self) -> (u32, Decision) {
         let mut t = Sprt::new(*self);
         loop {
             match t.push(false) {
                 Decision::Undecided => {}
-                _ => return t.rays(),
+                d => return (t.rays(), d),
             }
         }
     }

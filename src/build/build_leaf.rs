@@ -1,13 +1,17 @@
 //! A cell's visible set (papers/003 sec. 5): the candidates proven visible
 //! by the cell's cached rays, plus those the SPRT does not reject.
 //!
-//! Each undecided candidate gets object samples
-//! ([`AdaptiveSampler`]: origin first or target first, whichever is
-//! rejected less) from its own random stream, in rounds: every round draws a batch per
-//! undecided object (4, doubling up to 256), traces all of them in one
-//! parallel batch, then feeds each object's outcomes to its test in order.
-//! Any ray's closest hit proves that object visible, whoever's sample it
-//! was, so objects proven by others stop early. A candidate is decided:
+//! Each undecided candidate gets object samples ([`AdaptiveSampler`]:
+//! origin first or target first, whichever is rejected less) from its own
+//! random stream, in rounds: every round draws a batch per undecided
+//! object (4, doubling up to 256), traces all of them in one parallel
+//! batch, then goes through each object's outcomes in order. Any ray's
+//! closest hit proves that object visible, whoever's sample it was, so
+//! objects proven by others stop early. Until its first hit an object has
+//! seen only misses, and what the SPRT says after r misses in a row is
+//! fixed by its parameters, so it is computed once
+//! ([`crate::sprt::SprtParams::misses_decision`]) and the rounds count
+//! misses. A candidate is decided:
 //! - invisible by geometry, before any ray, when no direction of the cell
 //!   reaches its bounding box ([`reachable`]);
 //! - visible as soon as a ray hits it;
@@ -29,13 +33,14 @@ use super::{BuildStats, mix};
 use crate::bitset::ObjectSet;
 use crate::geom::cell::Cell;
 use crate::sample::{AdaptiveSampler, reachable};
-use crate::sprt::{Decision, Sprt};
+use crate::sprt::Decision;
 use crate::trace::Ray;
 
 /// One candidate under test.
 struct Pending {
     object: usize,
-    sprt: Sprt,
+    /// Rays taken that did not hit it.
+    misses: u32,
     rng: Pcg64,
     sampler: AdaptiveSampler,
     rejected: u32,
@@ -69,9 +74,9 @@ pub(super) fn visible_set(
         }
         pending.push(Pending {
             object: o,
-            sprt: Sprt::new(params.sprt),
+            misses: 0,
             rng: Pcg64::seed_from_u64(mix(seed, o as u64)),
-            sampler: AdaptiveSampler::default(),
+            sampler: AdaptiveSampler::new(cell),
             rejected: 0,
             done: false,
         });
@@ -122,9 +127,12 @@ pub(super) fn visible_set(
                     p.done = true;
                     continue;
                 }
-                match p.sprt.push(false) {
-                    Decision::Undecided => {}
-                    Decision::Invisible if p.sprt.rays() < min_misses => {}
+                p.misses += 1;
+                let (stop, decision) = ctx.misses_decision;
+                match decision {
+                    _ if p.misses < stop => {}
+                    Decision::Invisible if p.misses < min_misses => {}
+                    Decision::Undecided => unreachable!("the test always ends"),
                     Decision::Invisible => {
                         stats.decisions.sprt_invisible += 1;
                         p.done = true;

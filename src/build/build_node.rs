@@ -28,6 +28,9 @@ pub(super) struct Ctx<'a> {
     /// Misses in a row an internal node needs before an object is
     /// invisible (see [`BuildParams::internal_miss_factor`]).
     pub internal_min_misses: u32,
+    /// The SPRT's verdict on a run of misses, and its length
+    /// ([`crate::sprt::SprtParams::misses_decision`]).
+    pub misses_decision: (u32, crate::sprt::Decision),
     /// Finished measure, in units of 2^-40 of the root's.
     pub done: AtomicU64,
     pub progress: &'a (dyn Fn(f64) + Sync),

@@ -339,6 +339,7 @@ pub fn build(
             .map(|o| o.triangle_count() as u64)
             .collect(),
         root_measure: root.measure(),
+        misses_decision: params.sprt.misses_decision(),
         internal_min_misses: params
             .sprt
             .misses_to_invisible()

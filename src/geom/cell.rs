@@ -140,6 +140,57 @@ impl Cell {
     }
 }
 
+/// A cell's angular box as a fast test on direction vectors: phi by
+/// comparing `d.z / |d|` with precomputed cosines, theta by `atan2` only
+/// when the box does not span all of it. Agrees with
+/// [`Cell::contains_angles`] up to rounding at the boundary.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AngularBox {
+    /// cos of the upper phi bound (the smaller cosine).
+    cos_min: f32,
+    /// cos of the lower phi bound.
+    cos_max: f32,
+    /// The theta range, `None` when it is all of [-pi, pi].
+    theta: Option<(f32, f32)>,
+}
+
+impl AngularBox {
+    /// Whether direction `d` (non-zero) lies in the box.
+    pub fn contains(&self, d: Vec3) -> bool {
+        let c = d.z / d.length();
+        if c < self.cos_min || c > self.cos_max {
+            return false;
+        }
+        match self.theta {
+            None => true,
+            Some((t0, t1)) => {
+                let t = d.y.atan2(d.x);
+                t >= t0 && t <= t1
+            }
+        }
+    }
+}
+
+impl Cell {
+    /// The angular box as an [`AngularBox`] test.
+    pub fn angular_box(&self) -> AngularBox {
+        let full = self.lo[THETA] <= -PI && self.hi[THETA] >= PI;
+        AngularBox {
+            cos_min: if self.hi[PHI] >= PI {
+                -1.0
+            } else {
+                self.hi[PHI].cos()
+            },
+            cos_max: if self.lo[PHI] <= 0.0 {
+                1.0
+            } else {
+                self.lo[PHI].cos()
+            },
+            theta: (!full).then_some((self.lo[THETA], self.hi[THETA])),
+        }
+    }
+}
+
 /// A conservative box around the directions `q - p` for `p` in `from` and
 /// `q` in `to`: `(theta_lo, theta_hi, phi_lo, phi_hi)`, or `None` when the
 /// boxes overlap and every direction is possible. The theta interval may
@@ -290,6 +341,29 @@ mod tests {
             up += (p[PHI] < PI / 2.0) as usize;
         }
         assert_eq!(up, n / 2);
+    }
+
+    #[test]
+    fn angular_box_agrees_with_angles() {
+        let mut c = Cell::all_directions(Aabb::new(Vec3::ZERO, Vec3::ONE));
+        c.lo[THETA] = -1.0;
+        c.hi[THETA] = 2.0;
+        c.lo[PHI] = 0.3;
+        c.hi[PHI] = 2.5;
+        let b = c.angular_box();
+        let full = Cell::all_directions(Aabb::new(Vec3::ZERO, Vec3::ONE)).angular_box();
+        for i in 0..2000 {
+            let t = -PI + (i as f32 * 0.618_034).fract() * 2.0 * PI;
+            let p = (i as f32 * 0.414_213_6).fract() * PI;
+            let d = angles_to_direction(t, p);
+            let (t2, p2) = direction_to_angles(d);
+            let near = (t2 - c.lo[THETA]).abs().min((t2 - c.hi[THETA]).abs()) < 1e-4
+                || (p2 - c.lo[PHI]).abs().min((p2 - c.hi[PHI]).abs()) < 1e-4;
+            if !near {
+                assert_eq!(b.contains(d * 3.0), c.contains_angles(t2, p2), "{t} {p}");
+            }
+            assert!(full.contains(d));
+        }
     }
 
     #[test]

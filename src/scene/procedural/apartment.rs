@@ -6,7 +6,8 @@
 //! Layout (metres, z up): living room interior x in [0.15, 6.15], bedroom
 //! interior x in [6.3, 10.3], both y in [0.15, 5.15], ceiling at 2.6. The
 //! shared wall at x in [6.15, 6.3] has a 0.9 m wide, 2.1 m high door at
-//! y in [3.75, 4.65], whose leaf stands open into the bedroom.
+//! y in [3.75, 4.65], whose leaf stands open into the bedroom. Furniture
+//! keeps 1 mm from floors and walls (see `inset`).
 
 use glam::{Vec2, Vec3};
 use rand::RngExt;
@@ -177,12 +178,21 @@ fn plant(tris: &mut Vec<Triangle>, c: Vec3, height: f32) {
     );
 }
 
+/// A point of a room's furniture: room-local coordinates (from the
+/// interior's low corner) shrunk by 1 mm per 2.5 m and shifted 1 mm in, so
+/// that nothing stands exactly on the floor or against a wall. Coincident
+/// faces make visibility a matter of rounding (z-fighting): from inside a
+/// floor slab, a chair's feet would show through its top face.
+fn inset(room: Vec3, local: Vec3) -> Vec3 {
+    room + Vec3::splat(0.001) + local * 0.9996
+}
+
 fn jitter(rng: &mut Pcg64, r: f32) -> Vec3 {
     v(rng.random_range(-r..r), rng.random_range(-r..r), 0.0)
 }
 
 fn living_room(m: &mut Model, rng: &mut Pcg64, o: Vec3) {
-    let p = |x: f32, y: f32, z: f32| o + v(x, y, z);
+    let p = |x: f32, y: f32, z: f32| inset(o, v(x, y, z));
     push_box(m.object("living/rug"), p(1.8, 1.4, 0.0), p(4.2, 3.0, 0.01));
     // Sofa against the south wall, three cushions.
     let sofa = m.object("living/sofa");
@@ -345,7 +355,7 @@ fn living_room(m: &mut Model, rng: &mut Pcg64, o: Vec3) {
 }
 
 fn bed_room(m: &mut Model, rng: &mut Pcg64, o: Vec3) {
-    let p = |x: f32, y: f32, z: f32| o + v(x, y, z);
+    let p = |x: f32, y: f32, z: f32| inset(o, v(x, y, z));
     push_box(m.object("bedroom/rug"), p(1.0, 1.0, 0.0), p(2.0, 3.6, 0.01));
     // Bed with its head against the east wall.
     let bed = m.object("bedroom/bed");

@@ -66,9 +66,10 @@ pub(super) fn generate(rng: &mut Pcg64) -> Model {
 /// Furniture of one room whose interior starts at `o`; `flip` mirrors it
 /// in y so that desks face away from the corridor in both rows.
 fn furnish(m: &mut Model, rng: &mut Pcg64, name: &str, o: Vec3, flip: bool) {
+    // 1 mm off floors and walls, as in the apartment: no coincident faces.
     let p = |x: f32, y: f32, z: f32| {
         let y = if flip { ROOM_D - y } else { y };
-        o + v(x, y, z)
+        o + Vec3::splat(0.001) + v(x, y, z) * 0.9996
     };
     let bx = |m: &mut Model, obj: &str, a: Vec3, b: Vec3| {
         push_box(m.object(format!("{name}/{obj}")), a.min(b), a.max(b))
