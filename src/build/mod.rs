@@ -6,13 +6,13 @@
 //! 1. top up C's cache of uniform cell rays (those of the parent that fall
 //!    in C are kept: the paper's "re-use rays cast to determine an inner
 //!    node's partitioning", sec. 9) and trace them; every object a cached
-//!    ray hits is proven visible ([`build_node`]);
+//!    ray hits is proven visible (`build_node.rs`);
 //! 2. decide the other candidates by the SPRT on object samples
-//!    ([`build_leaf`]): C's set;
+//!    (`build_leaf.rs`): C's set;
 //! 3. stop on the depth limit, on too few visible triangles (the paper's
 //!    "split only if at least 500 polygons are visible"), or when no
 //!    candidate split scores E(A, B) above the threshold
-//!    ([`build_split`]); otherwise split, hand each child its half of the
+//!    (`build_split.rs`); otherwise split, hand each child its half of the
 //!    cache and C's set as candidates, build both in parallel, and make C's
 //!    set the union of theirs.
 //!
