@@ -36,6 +36,27 @@ impl ObjectSet {
         &self.words
     }
 
+    /// A set over `len` objects from its words (lowest objects first);
+    /// `None` when the word count is wrong or a bit past `len` is set.
+    pub fn from_words(len: usize, words: Vec<u64>) -> Option<Self> {
+        if words.len() != len.div_ceil(64) {
+            return None;
+        }
+        let tail = len % 64;
+        if tail != 0 && words.last().is_some_and(|&w| w >> tail != 0) {
+            return None;
+        }
+        Some(Self { words, len })
+    }
+
+    /// Adds every object whose bit is set in `words` (same layout as
+    /// [`ObjectSet::words`]); extra words are ignored.
+    pub fn union_words(&mut self, words: &[u64]) {
+        for (a, b) in self.words.iter_mut().zip(words) {
+            *a |= b;
+        }
+    }
+
     /// Adds object `i`; returns whether it was new.
     ///
     /// # Panics
@@ -149,6 +170,15 @@ mod tests {
         u.subtract(&a);
         assert_eq!(u.iter().collect::<Vec<_>>(), [5]);
         assert_eq!(ObjectSet::full(70).count(), 70);
+        assert_eq!(
+            ObjectSet::from_words(70, vec![1, 1 << 5]).unwrap().count(),
+            2
+        );
+        assert!(ObjectSet::from_words(70, vec![1, 1 << 6]).is_none());
+        assert!(ObjectSet::from_words(70, vec![1]).is_none());
+        let mut w = ObjectSet::new(70);
+        w.union_words(&[3, 4]);
+        assert_eq!(w.iter().collect::<Vec<_>>(), [0, 1, 66]);
         assert!(ObjectSet::new(3).is_empty());
     }
 }

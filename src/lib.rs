@@ -14,36 +14,79 @@
 //! model.obj / .gltf / .glb
 //!    |  scene: objects (name, triangle range, bounds, area table)
 //!    v
-//! Scene ------------------------------------------+
-//!    |  trace: BVH over all triangles (obvhs)      |
-//!    v                                             |
-//! Tracer: closest hit -> (object, triangle, t),    |
-//!         one ray or batches in parallel (rayon)   |
-//!    v                                             |
-//! (next: ray samples per 5D cell, SPRT, k-d tree, .v5d file, runtime
-//!  range queries, the conservative GPU oracle, comparison reports)
+//! Scene --------------------------------------------+
+//!    |  trace: BVH over all triangles (obvhs)        |
+//!    v                                               |
+//! Tracer: closest hit -> (object, triangle, t)       |
+//!    |  sample: cell rays, object samples            |
+//!    v                                               |
+//! sprt: beta-function SPRT per (cell, object)        |
+//!    v                                               |
+//! build: 5D k-d tree, splits scored by E(A,B) -> VisTree (tree)
+//!    |  codec: three set codings, the .v5d file
+//!    v
+//! model.v5d --decode--> query::Pvs: range and view queries -> ObjectSet
+//! ```
+//!
+//! ## A render loop
+//!
+//! An engine links `vis5d` with `default-features = false` (only [`query`],
+//! [`codec`], [`tree`], [`geom`] and [`bitset`]), loads the file once and
+//! asks for each frame's potentially visible set:
+//!
+//! ```
+//! # #[cfg(feature = "builder")] {
+//! use glam::Vec3;
+//! use vis5d::query::{Pvs, View};
+//!
+//! # // Make a small .v5d file for the example (engines load theirs).
+//! # let scene = vis5d::scene::procedural::generate(vis5d::scene::procedural::SceneKind::Apartment, 1, 1);
+//! # let tracer = vis5d::trace::Tracer::new(&scene);
+//! # let params = vis5d::build::BuildParams { max_depth: 6, ..Default::default() };
+//! # let (tree, _) = vis5d::build::build(&scene, &tracer, &params, &|_| {}).unwrap();
+//! # let bytes = vis5d::codec::write_file(&vis5d::build::to_file(&scene, tree, &params, None));
+//! let pvs = Pvs::from_bytes(&bytes)?; // or Pvs::load("model.v5d")
+//! let mut visible = pvs.new_set(); // made once, reused every frame
+//! for frame in 0..3 {
+//!     let eye = Vec3::new(2.0 + 0.5 * frame as f32, 2.5, 1.6);
+//!     let view = View::square(eye, Vec3::new(1.0, 0.2, -0.1), 90.0);
+//!     pvs.query_view(&view, &mut visible); // no allocation
+//!     for object in visible.iter() {
+//!         let _name = &pvs.objects()[object].name; // draw(object)
+//!     }
+//!     assert!(visible.count() < pvs.object_count());
+//! }
+//! # }
+//! # Ok::<(), vis5d::codec::CodecError>(())
 //! ```
 //!
 //! ## Modules
 //!
-//! - [`geom`]: boxes (and later 5D cells); no dependencies, always built.
-//! - [`scene`] (feature `builder`): OBJ and glTF loading, validation,
-//!   uniform surface sampling, procedural test scenes.
-//! - [`trace`] (feature `builder`): the BVH tracer.
+//! Runtime side (always built): [`geom`] (boxes, 5D cells), [`bitset`],
+//! [`tree`] (the in-memory tree), [`codec`] (codings and the file),
+//! [`query`] (the [`query::Pvs`] range and view queries), [`atomic_write`].
+//!
+//! Builder side (feature `builder`): [`scene`] (OBJ/glTF loading,
+//! procedural scenes), [`trace`] (the BVH tracer), [`sample`], [`sprt`],
+//! [`build`].
 //!
 //! ## Features
 //!
 //! - default (`cli`): the `vis5d` command-line tool and everything below.
-//! - `builder`: the preprocess: scene loaders, procedural scenes, tracer.
+//! - `builder`: the preprocess: scene loaders, procedural scenes, tracer,
+//!   SPRT, tree builder.
 //! - none (`default-features = false`): the runtime side only, free of
-//!   obvhs, rayon, gltf, tobj and clap.
+//!   obvhs, rayon, gltf, tobj, statrs and clap.
 
 #![warn(missing_docs)]
 
+pub mod atomic_write;
 pub mod bitset;
 #[cfg(feature = "builder")]
 pub mod build;
+pub mod codec;
 pub mod geom;
+pub mod query;
 #[cfg(feature = "builder")]
 pub mod sample;
 #[cfg(feature = "builder")]

@@ -13,11 +13,14 @@ use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use vis5d::build::{BuildParams, BuildStats, PixelError, TreeSummary, VerifyParams};
+use vis5d::codec::{self, Coding, code_size};
 use vis5d::geom::Aabb;
+use vis5d::query::{Pvs, View};
 use vis5d::scene::procedural::{self, SceneKind};
 use vis5d::scene::{self, Scene};
 use vis5d::sprt::SprtParams;
 use vis5d::trace::Tracer;
+use vis5d::tree::VisTree;
 
 /// Precomputed from-region visibility for static 3D scenes.
 ///
@@ -51,9 +54,21 @@ enum Command {
     /// the tree's shape, its sets, the rays cast and the decisions made.
     /// `--verify-views N` then renders N random views and reports the
     /// pixel error: pixels showing an object missing from their leaf's set.
-    /// (Writing the .v5d file comes with the next issue: nothing is written
-    /// yet.)
+    /// The tree is written to a .v5d file (next to the model unless `-o`
+    /// says otherwise), atomically: an interrupted build leaves no partial
+    /// file.
     Build(BuildArgs),
+    /// Print a .v5d file's header, its tree's shape and the size each of
+    /// the three set codings would take.
+    Stat(StatArgs),
+    /// Answer view queries from a .v5d file: the objects visible from a
+    /// position (or a box of positions) looking along a direction.
+    ///
+    /// Prints the names of the potentially visible objects. `--views FILE`
+    /// answers many views at once: a JSON list of {"pos": [x,y,z], "dir":
+    /// [x,y,z], "fov": degrees} (square field of view, up = +z unless the
+    /// direction is vertical).
+    Query(QueryArgs),
     /// Generate a procedural test scene and write it as OBJ.
     ///
     /// Kinds: apartment (two furnished rooms joined by a door, ~170 objects,
@@ -81,6 +96,18 @@ struct InfoArgs {
 struct BuildArgs {
     /// The scene file (.obj, .gltf or .glb).
     file: PathBuf,
+    /// Where to write the tree [default: the model's path with the
+    /// extension .v5d].
+    #[arg(short, long, value_name = "FILE.v5d")]
+    output: Option<PathBuf>,
+    /// How to code the sets: leaf (leaves only), parent (children relative
+    /// to the parent) or sibling (the heavier sibling relative to the
+    /// lighter too) [default: the smallest for this tree].
+    #[arg(long)]
+    coding: Option<Coding>,
+    /// Build and report, but write nothing.
+    #[arg(long)]
+    dry_run: bool,
     /// Print the summary as JSON instead of text.
     #[arg(long)]
     json: bool,
@@ -192,6 +219,60 @@ fn parse_pair(s: &str) -> Result<(f64, f64), String> {
 }
 
 #[derive(Args, Debug)]
+struct StatArgs {
+    /// The .v5d file.
+    file: PathBuf,
+    /// Print as JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args, Debug)]
+struct QueryArgs {
+    /// The .v5d file.
+    file: PathBuf,
+    /// The eye position, x,y,z.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, required_unless_present_any = ["views", "box"])]
+    pos: Option<Vec3>,
+    /// A box of eye positions instead of a point, x0,y0,z0,x1,y1,z1.
+    #[arg(id = "box", long = "box", value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box, conflicts_with = "pos")]
+    positions: Option<Aabb>,
+    /// The viewing direction, x,y,z.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, required_unless_present = "views")]
+    dir: Option<Vec3>,
+    /// The up direction [default: +z, or +y when looking straight up or
+    /// down].
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3)]
+    up: Option<Vec3>,
+    /// The field of view in degrees, horizontal and vertical.
+    #[arg(long, default_value_t = 90.0)]
+    fov: f32,
+    /// Answer every view of this JSON file instead.
+    #[arg(long, value_name = "VIEWS.json", conflicts_with_all = ["pos", "box", "dir"])]
+    views: Option<PathBuf>,
+    /// The scene the file should have been built for: refuse the file if
+    /// its geometry fingerprint differs.
+    #[arg(long, value_name = "MODEL")]
+    scene: Option<PathBuf>,
+    /// Print as JSON: a list of names, or with --views a list of lists.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Parses `x,y,z`.
+fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>().map_err(|e| format!("{x:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => Ok(Vec3::new(x, y, z)),
+        [_, _, _] => Err("the coordinates must be finite".into()),
+        _ => Err(format!("expected 3 numbers x,y,z, got {}", v.len())),
+    }
+}
+
+#[derive(Args, Debug)]
 struct SceneArgs {
     /// What to generate: apartment, office, city, forest or machine.
     kind: SceneKind,
@@ -213,6 +294,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Info(args) => info(&args),
         Command::Build(args) => build(&args),
+        Command::Stat(args) => stat(&args),
+        Command::Query(args) => query(&args),
         Command::Scene(args) => generate_scene(&args),
     };
     match result {
@@ -490,7 +573,40 @@ struct BuildReport {
     decisions: DecisionReport,
     seconds: StageSeconds,
     pixel_error: Option<PixelErrorReport>,
-    written: Option<String>,
+    coding_sizes: Vec<CodingSize>,
+    written: Option<Written>,
+}
+
+/// The size of a tree in one coding.
+#[derive(Serialize)]
+struct CodingSize {
+    coding: String,
+    structure_bits: u64,
+    set_bits: u64,
+    bytes: u64,
+}
+
+fn coding_sizes(tree: &VisTree) -> Vec<CodingSize> {
+    Coding::ALL
+        .iter()
+        .map(|&c| {
+            let s = code_size(tree, c);
+            CodingSize {
+                coding: c.name().to_owned(),
+                structure_bits: s.structure_bits,
+                set_bits: s.set_bits,
+                bytes: s.bytes(),
+            }
+        })
+        .collect()
+}
+
+/// What `build` wrote.
+#[derive(Serialize)]
+struct Written {
+    path: String,
+    bytes: usize,
+    coding: String,
 }
 
 #[derive(Serialize)]
@@ -534,6 +650,24 @@ fn build(args: &BuildArgs) -> Result<()> {
     params
         .check()
         .map_err(|e| anyhow::anyhow!("invalid build parameters: {e}"))?;
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| args.file.with_extension("v5d"));
+    if !args.dry_run {
+        // Fail before the build, not after it.
+        let dir = output
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        if !dir.is_dir() {
+            bail!(
+                "{}: cannot write the tree there: {} is not a folder",
+                output.display(),
+                dir.display()
+            );
+        }
+    }
     let (scene, load_seconds) = load_scene(&args.file)?;
     let start = Instant::now();
     let tracer = Tracer::new(&scene);
@@ -559,7 +693,27 @@ fn build(args: &BuildArgs) -> Result<()> {
         vis5d::build::pixel_error(&scene, &tracer, &tree, &v)
     });
     let verify_seconds = start.elapsed().as_secs_f64();
-    let report = build_report(
+    let sizes = coding_sizes(&tree);
+    let written = if args.dry_run {
+        None
+    } else {
+        let file = vis5d::build::to_file(&scene, tree.clone(), &params, args.coding);
+        let bytes = codec::write_file(&file);
+        // Encode -> decode must be the identity: check before writing.
+        let back = codec::read_file(&bytes, codec::ReadLimits::default())
+            .map_err(|e| anyhow::anyhow!("internal error: the coded tree does not decode: {e}"))?;
+        if back.tree != tree {
+            bail!("internal error: the coded tree decodes to another tree");
+        }
+        vis5d::atomic_write::write_atomic(&output, &bytes)
+            .with_context(|| format!("{}: cannot write the tree", output.display()))?;
+        Some(Written {
+            path: output.display().to_string(),
+            bytes: bytes.len(),
+            coding: file.coding.name().to_owned(),
+        })
+    };
+    let mut report = build_report(
         args,
         &params,
         &scene,
@@ -568,6 +722,8 @@ fn build(args: &BuildArgs) -> Result<()> {
         verify.as_ref(),
         [load_seconds, bvh_seconds, verify_seconds],
     );
+    report.coding_sizes = sizes;
+    report.written = written;
     let mut out = io::stdout().lock();
     if args.json {
         serde_json::to_writer_pretty(&mut out, &report)?;
@@ -654,6 +810,7 @@ fn build_report(
                 .map(|&(o, n)| (scene.objects()[o as usize].name.clone(), n))
                 .collect(),
         }),
+        coding_sizes: Vec::new(),
         written: None,
     }
 }
@@ -732,9 +889,256 @@ fn print_build(out: &mut impl Write, r: &BuildReport) -> io::Result<()> {
             writeln!(out, "                   {n} pixels of {name:?} missing")?;
         }
     }
+    let sizes: Vec<String> = r
+        .coding_sizes
+        .iter()
+        .map(|c| format!("{} {} B", c.coding, c.bytes))
+        .collect();
+    writeln!(out, "  coded tree       {}", sizes.join(", "))?;
+    match &r.written {
+        Some(w) => writeln!(
+            out,
+            "  wrote            {} ({} bytes, {} coding)",
+            w.path, w.bytes, w.coding
+        )?,
+        None => writeln!(out, "  nothing written (--dry-run)")?,
+    }
+    Ok(())
+}
+
+/// `stat`'s report.
+#[derive(Serialize)]
+struct StatReport {
+    file: String,
+    file_bytes: usize,
+    version: u16,
+    coding: String,
+    grid_bits: u32,
+    objects: usize,
+    fingerprint: String,
+    root_cell: [[f32; 5]; 2],
+    params: Vec<(String, String)>,
+    nodes: usize,
+    leaves: usize,
+    depth: u32,
+    mean_leaf_objects: f64,
+    max_leaf_objects: usize,
+    mean_leaf_triangles: f64,
+    max_leaf_triangles: u64,
+    coding_sizes: Vec<CodingSize>,
+}
+
+fn read_v5d(path: &Path) -> Result<(Vec<u8>, codec::V5dFile)> {
+    let bytes = std::fs::read(path)
+        .with_context(|| format!("{}: cannot read the .v5d file", path.display()))?;
+    let file = codec::read_file(&bytes, codec::ReadLimits::default())
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok((bytes, file))
+}
+
+fn stat(args: &StatArgs) -> Result<()> {
+    let (bytes, file) = read_v5d(&args.file)?;
+    let tree = &file.tree;
+    let leaves = tree.leaves();
+    let tris = |set: &vis5d::bitset::ObjectSet| -> u64 {
+        set.iter().map(|o| file.objects[o].triangles as u64).sum()
+    };
+    let (mut sum_o, mut sum_t, mut max_o, mut max_t) = (0usize, 0u64, 0usize, 0u64);
+    for l in &leaves {
+        let set = &tree.nodes()[l.node].set;
+        let (o, t) = (set.count(), tris(set));
+        sum_o += o;
+        sum_t += t;
+        max_o = max_o.max(o);
+        max_t = max_t.max(t);
+    }
+    let root = tree.root_cell();
+    let report = StatReport {
+        file: args.file.display().to_string(),
+        file_bytes: bytes.len(),
+        version: codec::VERSION,
+        coding: file.coding.name().to_owned(),
+        grid_bits: tree.grid_bits(),
+        objects: file.objects.len(),
+        fingerprint: format!("{:016x}", file.fingerprint),
+        root_cell: [root.lo, root.hi],
+        params: file
+            .params
+            .lines()
+            .filter_map(|l| l.split_once('='))
+            .map(|(k, v)| (k.to_owned(), v.to_owned()))
+            .collect(),
+        nodes: tree.nodes().len(),
+        leaves: leaves.len(),
+        depth: tree.depth(),
+        mean_leaf_objects: sum_o as f64 / leaves.len() as f64,
+        max_leaf_objects: max_o,
+        mean_leaf_triangles: sum_t as f64 / leaves.len() as f64,
+        max_leaf_triangles: max_t,
+        coding_sizes: coding_sizes(tree),
+    };
+    let mut out = io::stdout().lock();
+    if args.json {
+        serde_json::to_writer_pretty(&mut out, &report)?;
+        writeln!(out)?;
+        return Ok(());
+    }
+    let r = &report;
     writeln!(
         out,
-        "  nothing written: the .v5d file format comes with the next issue (#4)"
+        "{}: .v5d version {}, {} bytes",
+        r.file, r.version, r.file_bytes
     )?;
+    writeln!(
+        out,
+        "  coding           {} (q = {} bits per split value)",
+        r.coding, r.grid_bits
+    )?;
+    writeln!(out, "  objects          {}", r.objects)?;
+    writeln!(out, "  scene            fingerprint {}", r.fingerprint)?;
+    writeln!(
+        out,
+        "  view box         ({}, {}, {}) .. ({}, {}, {})",
+        root.lo[0], root.lo[1], root.lo[2], root.hi[0], root.hi[1], root.hi[2]
+    )?;
+    writeln!(
+        out,
+        "  tree             {} nodes, {} leaves, depth {}",
+        r.nodes, r.leaves, r.depth
+    )?;
+    writeln!(
+        out,
+        "  leaf sets        mean {:.1} objects ({:.0} triangles), max {} objects ({} triangles)",
+        r.mean_leaf_objects, r.mean_leaf_triangles, r.max_leaf_objects, r.max_leaf_triangles
+    )?;
+    writeln!(out, "  coded tree size  structure bits + set bits = bytes")?;
+    for c in &r.coding_sizes {
+        let mark = if c.coding == r.coding {
+            "  (this file)"
+        } else {
+            ""
+        };
+        writeln!(
+            out,
+            "    {:<8} {:>10} + {:>12} = {:>10} B{mark}",
+            c.coding, c.structure_bits, c.set_bits, c.bytes
+        )?;
+    }
+    writeln!(out, "  build parameters")?;
+    for (k, v) in &r.params {
+        writeln!(out, "    {k:<22} {v}")?;
+    }
+    Ok(())
+}
+
+/// One view of `query --views`.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ViewSpec {
+    pos: [f32; 3],
+    dir: [f32; 3],
+    #[serde(default = "default_fov")]
+    fov: f32,
+}
+
+fn default_fov() -> f32 {
+    90.0
+}
+
+fn query(args: &QueryArgs) -> Result<()> {
+    let pvs = Pvs::load(&args.file)?;
+    if let Some(model) = &args.scene {
+        let (scene, _) = load_scene(model)?;
+        pvs.check_fingerprint(scene.fingerprint())
+            .map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
+    }
+    let views: Vec<View> = match &args.views {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("{}: cannot read the views", path.display()))?;
+            let specs: Vec<ViewSpec> = serde_json::from_str(&text).with_context(|| {
+                format!(
+                    "{}: expected a JSON list of {{\"pos\": [x,y,z], \"dir\": [x,y,z], \"fov\": degrees}}",
+                    path.display()
+                )
+            })?;
+            specs
+                .iter()
+                .enumerate()
+                .map(|(i, v)| {
+                    let (pos, dir) = (Vec3::from_array(v.pos), Vec3::from_array(v.dir));
+                    let ok = pos.is_finite()
+                        && dir.is_finite()
+                        && dir != Vec3::ZERO
+                        && v.fov > 0.0
+                        && v.fov < 180.0;
+                    if !ok {
+                        bail!(
+                            "{}: view {i} needs finite pos, a non-zero dir and 0 < fov < 180",
+                            path.display()
+                        );
+                    }
+                    Ok(View::square(pos, dir, v.fov))
+                })
+                .collect::<Result<_>>()?
+        }
+        None => {
+            let dir = args.dir.expect("clap requires --dir without --views");
+            if dir == Vec3::ZERO {
+                bail!("--dir must not be the zero vector");
+            }
+            if !(args.fov > 0.0 && args.fov < 180.0) {
+                bail!("--fov must be between 0 and 180 degrees");
+            }
+            let (pos, radius) = match (args.pos, args.positions) {
+                (_, Some(b)) => (b.center(), 0.0),
+                (Some(p), None) => (p, 0.0),
+                (None, None) => unreachable!("clap requires --pos or --box"),
+            };
+            let mut v = View::square(pos, dir, args.fov);
+            if let Some(up) = args.up {
+                v.up = up;
+            }
+            v.radius = radius;
+            vec![v]
+        }
+    };
+    let mut set = pvs.new_set();
+    let mut answers: Vec<Vec<&str>> = Vec::with_capacity(views.len());
+    for v in &views {
+        match args.positions {
+            Some(b) => {
+                let r = vis5d::query::frustum_angles(v.dir, v.up, v.fov_x, v.fov_y);
+                let mut acc = pvs.new_set();
+                for &(t0, t1, p0, p1) in r.boxes() {
+                    pvs.query_range(&b, (t0, t1), (p0, p1), &mut set);
+                    acc.union_with(&set);
+                }
+                set = acc;
+            }
+            None => pvs.query_view(v, &mut set),
+        }
+        answers.push(set.iter().map(|o| pvs.objects()[o].name.as_str()).collect());
+    }
+    let mut out = io::stdout().lock();
+    if args.json {
+        if args.views.is_some() {
+            serde_json::to_writer(&mut out, &answers)?;
+        } else {
+            serde_json::to_writer(&mut out, &answers[0])?;
+        }
+        writeln!(out)?;
+    } else if args.views.is_some() {
+        for (i, names) in answers.iter().enumerate() {
+            writeln!(out, "# view {i}: {} objects", names.len())?;
+            for n in names {
+                writeln!(out, "{n}")?;
+            }
+        }
+    } else {
+        for n in &answers[0] {
+            writeln!(out, "{n}")?;
+        }
+    }
     Ok(())
 }

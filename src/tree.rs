@@ -18,6 +18,10 @@
 use crate::bitset::ObjectSet;
 use crate::geom::cell::{Cell, DIMS, grid_value};
 
+/// The deepest a tree may be: the builder refuses deeper settings and the
+/// decoder refuses deeper files, so recursion over a tree is bounded.
+pub const MAX_DEPTH: u32 = 64;
+
 /// How a node is cut.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Split {

@@ -42,6 +42,7 @@ use std::time::Instant;
 pub use build_verify::{PixelError, VerifyParams, pixel_error, view_rays};
 
 use crate::bitset::ObjectSet;
+use crate::codec::{Coding, FileObject, V5dFile, code_size};
 use crate::geom::Aabb;
 use crate::geom::cell::{Cell, THETA};
 use crate::scene::Scene;
@@ -173,6 +174,13 @@ impl BuildParams {
                 self.grid_bits
             ));
         }
+        let deepest = self.max_depth as u64 + self.angular_leaves.trailing_zeros() as u64;
+        if deepest > crate::tree::MAX_DEPTH as u64 {
+            return Err(format!(
+                "max_depth plus the angular cuts ({deepest}) exceeds {}",
+                crate::tree::MAX_DEPTH
+            ));
+        }
         if !(self.view_grow >= 0.0 && self.view_grow.is_finite()) {
             return Err(format!(
                 "the view box growth must be >= 0, not {}",
@@ -194,6 +202,79 @@ impl BuildParams {
         let b = self.view_box.unwrap_or(scene.bounds());
         b.expanded(self.view_grow * b.diagonal())
     }
+}
+
+impl BuildParams {
+    /// The parameters as `key=value` lines, as stored in `.v5d` files
+    /// (the view box is the root box actually used for `scene`).
+    pub fn to_text(&self, scene: &Scene) -> String {
+        let b = self.root_box(scene);
+        let p = &self.sprt;
+        let lines = [
+            format!("vis5d={}", env!("CARGO_PKG_VERSION")),
+            format!("seed={}", self.seed),
+            format!(
+                "view_box={},{},{},{},{},{}",
+                b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z
+            ),
+            format!("s_thresh={}", p.s_thresh),
+            format!("accept={}", p.accept),
+            format!("reject={}", p.reject),
+            format!("prior={},{}", p.prior_a, p.prior_b),
+            format!("max_rays={}", p.max_rays),
+            format!("internal_miss_factor={}", self.internal_miss_factor),
+            format!("cache_rays={}", self.cache_rays),
+            format!("split_threshold={}", self.split_threshold),
+            format!("max_depth={}", self.max_depth),
+            format!("min_cell_fraction={}", self.min_cell_fraction),
+            format!("min_angle_fraction={}", self.min_angle_fraction),
+            format!("min_visible_triangles={}", self.min_visible_triangles),
+            format!("spatial_only={}", self.spatial_only),
+            format!("angular_leaves={}", self.angular_leaves),
+            format!("angular_candidates={}", self.angular_candidates),
+            format!("grid_bits={}", self.grid_bits),
+            format!("rejection_budget={}", self.rejection_budget),
+        ];
+        lines.join("\n") + "\n"
+    }
+}
+
+/// The `.v5d` contents for `tree`, built for `scene` with `params`, with
+/// `coding`, or the smallest of the three when `None`.
+pub fn to_file(
+    scene: &Scene,
+    tree: VisTree,
+    params: &BuildParams,
+    coding: Option<Coding>,
+) -> V5dFile {
+    let coding = coding.unwrap_or_else(|| smallest_coding(&tree));
+    V5dFile {
+        coding,
+        fingerprint: scene.fingerprint(),
+        params: params.to_text(scene),
+        objects: scene
+            .objects()
+            .iter()
+            .map(|o| FileObject {
+                name: o.name.clone(),
+                triangles: o.triangle_count() as u32,
+            })
+            .collect(),
+        tree,
+    }
+}
+
+/// The coding that makes `tree` smallest (the first of
+/// [`Coding::ALL`] on a tie).
+pub fn smallest_coding(tree: &VisTree) -> Coding {
+    let mut best = (u64::MAX, Coding::Sibling);
+    for c in Coding::ALL {
+        let bits = code_size(tree, c).total_bits();
+        if bits < best.0 {
+            best = (bits, c);
+        }
+    }
+    best.1
 }
 
 /// How the candidate objects of the cells were decided, summed over all

@@ -268,6 +268,15 @@ impl Scene {
         self.format
     }
 
+    /// The fingerprint of the scene's geometry
+    /// ([`crate::codec::geometry_fingerprint`]): stored in `.v5d` files so
+    /// that a file built for another version of the scene is detected.
+    pub fn fingerprint(&self) -> u64 {
+        crate::codec::geometry_fingerprint(
+            (0..self.objects.len()).map(|o| self.object_triangles(o)),
+        )
+    }
+
     /// What loading dropped, skipped and noticed.
     pub fn report(&self) -> &LoadReport {
         &self.report

@@ -50,30 +50,10 @@ pub fn write_obj(scene: &Scene, header: &[String], out: &mut impl Write) -> io::
     out.flush()
 }
 
-/// Writes `scene` to the OBJ file `path` atomically: into a temporary file
-/// beside it, renamed over `path` only when complete, so an interrupted
-/// write never leaves a partial file.
+/// Writes `scene` to the OBJ file `path` atomically
+/// ([`crate::atomic_write::write_atomic`]): never a partial file.
 pub fn write_obj_file(scene: &Scene, header: &[String], path: &Path) -> io::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "the path names no file"))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| {
-        let mut w = io::BufWriter::new(std::fs::File::create(&tmp)?);
-        write_obj(scene, header, &mut w)?;
-        w.into_inner().map_err(|e| e.into_error())?.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    let mut bytes = Vec::new();
+    write_obj(scene, header, &mut bytes)?;
+    crate::atomic_write::write_atomic(path, &bytes)
 }

@@ -127,7 +127,7 @@ fn scene_writes_the_committed_file() {
 }
 
 #[test]
-fn build_reports_and_writes_nothing_yet() {
+fn build_reports_and_dry_runs() {
     let out = vis5d(&[
         "build",
         "scenes/machine.obj",
@@ -136,6 +136,7 @@ fn build_reports_and_writes_nothing_yet() {
         "6",
         "--verify-views",
         "5",
+        "--dry-run",
     ]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -146,7 +147,13 @@ fn build_reports_and_writes_nothing_yet() {
     assert!(v["decisions"]["proven_by_hit"].as_u64().unwrap() > 0);
     assert!(v["pixel_error"]["hit_pixels"].as_u64().unwrap() > 0);
     assert_eq!(v["written"], serde_json::Value::Null);
-    let out = vis5d(&["build", "scenes/machine.obj", "--max-depth", "4"]);
+    let out = vis5d(&[
+        "build",
+        "scenes/machine.obj",
+        "--max-depth",
+        "4",
+        "--dry-run",
+    ]);
     assert!(out.status.success());
     let t = text(&out.stdout);
     for want in [
@@ -190,4 +197,148 @@ fn build_refuses_bad_flags() {
         let err = text(&out.stderr);
         assert!(err.contains(want), "{args:?}: {err}");
     }
+}
+
+#[test]
+fn build_writes_next_to_the_model_and_stat_and_query_read_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("machine.obj");
+    std::fs::copy(crate::committed("machine.obj"), &model).unwrap();
+    let out = vis5d(&[
+        "build",
+        model.to_str().unwrap(),
+        "--max-depth",
+        "8",
+        "--coding",
+        "leaf",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v5d = dir.path().join("machine.v5d");
+    assert!(text(&out.stdout).contains("wrote"), "{}", text(&out.stdout));
+    assert!(v5d.exists());
+
+    let out = vis5d(&["stat", v5d.to_str().unwrap(), "--json"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(s["coding"], "leaf");
+    assert_eq!(s["objects"], 146);
+    assert_eq!(s["coding_sizes"].as_array().unwrap().len(), 3);
+    assert_eq!(
+        s["file_bytes"].as_u64().unwrap(),
+        std::fs::metadata(&v5d).unwrap().len()
+    );
+    let out = vis5d(&["stat", v5d.to_str().unwrap()]);
+    assert!(
+        text(&out.stdout).contains("sibling"),
+        "{}",
+        text(&out.stdout)
+    );
+
+    // One view: the outside of the casing, looking at its front.
+    let q = [
+        "query",
+        v5d.to_str().unwrap(),
+        "--pos",
+        "0.6,0.01,0.45",
+        "--dir",
+        "0,1,0",
+    ];
+    let out = vis5d(&[&q[..], &["--json"]].concat());
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let names: Vec<String> = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(names.iter().any(|n| n == "casing/front"), "{names:?}");
+    let out = vis5d(&q);
+    assert_eq!(text(&out.stdout).lines().count(), names.len());
+    // With the right scene, and with another one.
+    let out = vis5d(&[&q[..], &["--scene", model.to_str().unwrap()]].concat());
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let out = vis5d(&[&q[..], &["--scene", "scenes/city.obj"]].concat());
+    assert!(!out.status.success());
+    assert!(
+        text(&out.stderr).contains("another version of the scene"),
+        "{}",
+        text(&out.stderr)
+    );
+    // Many views at once.
+    let views = dir.path().join("views.json");
+    std::fs::write(
+        &views,
+        r#"[{"pos": [0.6, 0.01, 0.45], "dir": [0, 1, 0]}, {"pos": [0.6, 0.35, 0.45], "dir": [0, 0, 1], "fov": 60}]"#,
+    )
+    .unwrap();
+    let out = vis5d(&[
+        "query",
+        v5d.to_str().unwrap(),
+        "--views",
+        views.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let all: Vec<Vec<String>> = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(all.len(), 2);
+    assert_eq!(all[0], names);
+    // A box of positions sees at least what its centre sees.
+    let out = vis5d(&[
+        "query",
+        v5d.to_str().unwrap(),
+        "--box",
+        "0.5,0.005,0.4,0.7,0.015,0.5",
+        "--dir",
+        "0,1,0",
+        "--json",
+    ]);
+    let boxed: Vec<String> = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(names.iter().all(|n| boxed.contains(n)), "{boxed:?}");
+}
+
+#[test]
+fn query_and_stat_refuse_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let junk = dir.path().join("junk.v5d");
+    std::fs::write(&junk, b"definitely not a tree").unwrap();
+    let views = dir.path().join("views.json");
+    std::fs::write(&views, r#"[{"pos": [0, 0], "dir": [1, 0, 0]}]"#).unwrap();
+    let j = junk.to_str().unwrap();
+    for (args, want) in [
+        (vec!["stat", j], "junk.v5d: not a .v5d file"),
+        (
+            vec!["query", j, "--pos", "0,0,0", "--dir", "1,0,0"],
+            "junk.v5d: not a .v5d file",
+        ),
+        (vec!["stat", "nope.v5d"], "nope.v5d: cannot read"),
+        (
+            vec!["query", "nope.v5d", "--pos", "0,0"],
+            "expected 3 numbers",
+        ),
+        (vec!["query", "nope.v5d", "--pos", "0,0,0"], "--dir"),
+    ] {
+        let out = vis5d(&args);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(
+            text(&out.stderr).contains(want),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+    }
+    // A good file with bad views.
+    let model = dir.path().join("m.obj");
+    std::fs::copy(crate::committed("machine.obj"), &model).unwrap();
+    assert!(
+        vis5d(&["build", model.to_str().unwrap(), "--max-depth", "3"])
+            .status
+            .success()
+    );
+    let v5d = dir.path().join("m.v5d");
+    let out = vis5d(&[
+        "query",
+        v5d.to_str().unwrap(),
+        "--views",
+        views.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(
+        text(&out.stderr).contains("views.json"),
+        "{}",
+        text(&out.stderr)
+    );
 }

@@ -12,6 +12,7 @@ mod procedural;
 mod real_scenes;
 mod sprt;
 mod trace;
+mod v5d;
 
 use std::path::{Path, PathBuf};
 

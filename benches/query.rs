@@ -1,0 +1,105 @@
+//! The runtime side: view queries per second, and the time to decode a
+//! `.v5d` file, on trees built with default parameters for the apartment,
+//! the block of 18 apartments and the city. Results go to notes/query.md.
+//!
+//! Views: 1,000 per scene, eye uniform in the view box, direction uniform on
+//! the sphere, 90 degree square field of view, seeded.
+//!
+//! Run: `cargo bench --bench query`.
+
+use std::time::Duration;
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use glam::Vec3;
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+use vis5d::build::{BuildParams, build, to_file};
+use vis5d::codec::write_file;
+use vis5d::query::{Pvs, View};
+use vis5d::scene::Scene;
+use vis5d::scene::procedural::{SceneKind, generate};
+use vis5d::trace::Tracer;
+
+const VIEWS: usize = 1000;
+
+fn file_for(scene: &Scene) -> Vec<u8> {
+    let tracer = Tracer::new(scene);
+    let params = BuildParams::default();
+    let (tree, _) = build(scene, &tracer, &params, &|_| {}).expect("default parameters are valid");
+    write_file(&to_file(scene, tree, &params, None))
+}
+
+fn views(pvs: &Pvs) -> Vec<View> {
+    let mut rng = Pcg64::seed_from_u64(5);
+    let space = pvs.root_cell().space();
+    (0..VIEWS)
+        .map(|_| {
+            let eye = space.lerp(Vec3::new(rng.random(), rng.random(), rng.random()));
+            let z = rng.random_range(-1.0..1.0f32);
+            let a = rng.random_range(0.0..std::f32::consts::TAU);
+            let dir = Vec3::new(
+                (1.0 - z * z).sqrt() * a.cos(),
+                (1.0 - z * z).sqrt() * a.sin(),
+                z,
+            );
+            View::square(eye, dir, 90.0)
+        })
+        .collect()
+}
+
+fn queries(c: &mut Criterion) {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let scenes = [
+        (
+            "apartment",
+            vis5d::scene::load(root.join("scenes/apartment.obj")).expect("committed"),
+        ),
+        ("apartment_x18", generate(SceneKind::Apartment, 1, 18)),
+        (
+            "city",
+            vis5d::scene::load(root.join("scenes/city.obj")).expect("committed"),
+        ),
+    ];
+    for (name, scene) in &scenes {
+        let bytes = file_for(scene);
+        let pvs = Pvs::from_bytes(&bytes).expect("a fresh file decodes");
+        let views = views(&pvs);
+        let mut set = pvs.new_set();
+        let mean: f64 = views
+            .iter()
+            .map(|v| {
+                pvs.query_view(v, &mut set);
+                set.count() as f64
+            })
+            .sum::<f64>()
+            / VIEWS as f64;
+        eprintln!(
+            "{name}: {} objects, {} nodes, {} bytes ({}), mean answer {mean:.1} objects",
+            pvs.object_count(),
+            pvs.node_count(),
+            bytes.len(),
+            pvs.coding()
+        );
+        let mut g = c.benchmark_group("query");
+        g.throughput(Throughput::Elements(VIEWS as u64));
+        g.measurement_time(Duration::from_secs(5));
+        g.bench_function(BenchmarkId::new("view", name), |b| {
+            b.iter(|| {
+                for v in &views {
+                    pvs.query_view(v, &mut set);
+                }
+            })
+        });
+        g.finish();
+        let mut g = c.benchmark_group("decode");
+        g.throughput(Throughput::Bytes(bytes.len() as u64));
+        g.measurement_time(Duration::from_secs(5));
+        g.bench_function(*name, |b| {
+            b.iter(|| Pvs::from_bytes(&bytes).expect("decodes"))
+        });
+        g.finish();
+    }
+}
+
+criterion_group!(benches, queries);
+criterion_main!(benches);

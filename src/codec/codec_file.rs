@@ -1,0 +1,374 @@
+//! The `.v5d` file: a header, the build parameters, the object table, the
+//! coded tree and a checksum. The byte layout is specified in
+//! `notes/format.md`; this file implements exactly that, little-endian.
+//!
+//! Reading is defensive: the size is checked before the magic, the magic
+//! before the version, the checksum before anything is parsed, every length
+//! against the bytes left, every count against what the bytes can hold and
+//! against the decode budget ([`ReadLimits`]), before anything is
+//! allocated.
+
+use glam::Vec3;
+
+use super::CodecError;
+use super::codec_tree::{Coding, DecodeLimits, decode, encode};
+use crate::geom::cell::{Cell, DIMS};
+use crate::tree::VisTree;
+
+/// The first 8 bytes of every `.v5d` file: a non-ASCII byte, "V5D", CR LF,
+/// EOF, LF (after PNG's: catches text-mode mangling and truncated
+/// transfers).
+pub const MAGIC: [u8; 8] = [0x89, b'V', b'5', b'D', b'\r', b'\n', 0x1a, b'\n'];
+
+/// The format version this code writes and reads.
+pub const VERSION: u16 = 1;
+
+/// The size of the fixed header, before the parameters.
+const FIXED: usize = 8 + 2 + 1 + 1 + 4 + 4 + 4 + 8 + 4 * 2 * DIMS + 4;
+
+/// The smallest possible file: the fixed header, empty parameters, no
+/// objects, the bit length, no tree bytes, the checksum.
+pub const MIN_FILE_LEN: usize = FIXED + 8 + 4;
+
+/// One object of the file's object table.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FileObject {
+    /// The object's name in the scene.
+    pub name: String,
+    /// Its triangle count (what drawing it costs).
+    pub triangles: u32,
+}
+
+/// Everything a `.v5d` file holds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct V5dFile {
+    /// How the tree's sets are coded.
+    pub coding: Coding,
+    /// The fingerprint of the scene geometry the tree was built for
+    /// ([`geometry_fingerprint`]).
+    pub fingerprint: u64,
+    /// The build parameters, as `key=value` lines.
+    pub params: String,
+    /// The objects, in scene order.
+    pub objects: Vec<FileObject>,
+    /// The tree (its root cell and grid bits are stored in the header).
+    pub tree: VisTree,
+}
+
+/// Bounds on what reading a file may allocate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReadLimits {
+    /// The most bytes the decoded tree's sets may take.
+    pub max_decoded_bytes: usize,
+}
+
+impl Default for ReadLimits {
+    /// 1 GiB of decoded sets: 60 times the largest tree measured
+    /// (notes/format.md), and a bound on what a hostile file can ask for.
+    fn default() -> Self {
+        Self {
+            max_decoded_bytes: 1 << 30,
+        }
+    }
+}
+
+/// The 64-bit FNV-1a hash of a scene's geometry: the number of objects,
+/// each object's triangle count and the bits of every coordinate, in
+/// order. Names are not included: renaming an object does not change what
+/// is visible.
+pub fn geometry_fingerprint<'a>(objects: impl IntoIterator<Item = &'a [[Vec3; 3]]>) -> u64 {
+    const PRIME: u64 = 0x0000_0100_0000_01b3;
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            h ^= b as u64;
+            h = h.wrapping_mul(PRIME);
+        }
+    };
+    eat(b"vis5d-geometry-1");
+    let mut count = 0u64;
+    for tris in objects {
+        count += 1;
+        eat(&(tris.len() as u64).to_le_bytes());
+        for t in tris {
+            for v in t {
+                for c in v.to_array() {
+                    eat(&c.to_bits().to_le_bytes());
+                }
+            }
+        }
+    }
+    eat(&count.to_le_bytes());
+    h
+}
+
+/// The CRC-32 (IEEE 802.3, as in zip and PNG) of `bytes`.
+pub fn crc32(bytes: &[u8]) -> u32 {
+    const TABLE: [u32; 256] = {
+        let mut t = [0u32; 256];
+        let mut i = 0;
+        while i < 256 {
+            let mut c = i as u32;
+            let mut k = 0;
+            while k < 8 {
+                c = if c & 1 != 0 {
+                    0xEDB8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
+                k += 1;
+            }
+            t[i] = c;
+            i += 1;
+        }
+        t
+    };
+    let mut c = !0u32;
+    for &b in bytes {
+        c = TABLE[((c ^ b as u32) & 0xff) as usize] ^ (c >> 8);
+    }
+    !c
+}
+
+/// Writes `file` in the `.v5d` format. The tree must satisfy
+/// [`VisTree::validate`].
+pub fn write_file(file: &V5dFile) -> Vec<u8> {
+    let tree = &file.tree;
+    let mut out = Vec::new();
+    out.extend_from_slice(&MAGIC);
+    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.push(file.coding.to_byte());
+    out.push(tree.grid_bits() as u8);
+    out.extend_from_slice(&(file.objects.len() as u32).to_le_bytes());
+    out.extend_from_slice(&(tree.nodes().len() as u32).to_le_bytes());
+    out.extend_from_slice(&(tree.leaf_count() as u32).to_le_bytes());
+    out.extend_from_slice(&file.fingerprint.to_le_bytes());
+    let root = tree.root_cell();
+    for v in root.lo.iter().chain(&root.hi) {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out.extend_from_slice(&(file.params.len() as u32).to_le_bytes());
+    out.extend_from_slice(file.params.as_bytes());
+    for o in &file.objects {
+        out.extend_from_slice(&o.triangles.to_le_bytes());
+        let name = &o.name.as_bytes()[..o.name.len().min(u16::MAX as usize)];
+        out.extend_from_slice(&(name.len() as u16).to_le_bytes());
+        out.extend_from_slice(name);
+    }
+    let (bits, _) = encode(tree, file.coding);
+    out.extend_from_slice(&bits.bit_len().to_le_bytes());
+    out.extend_from_slice(&bits.into_bytes());
+    let crc = crc32(&out);
+    out.extend_from_slice(&crc.to_le_bytes());
+    out
+}
+
+/// A cursor over the file's bytes whose every read is checked.
+struct Cursor<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Cursor<'a> {
+    fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], CodecError> {
+        let left = self.bytes.len() - self.pos;
+        if n > left {
+            return Err(CodecError::Truncated(format!(
+                "{what} needs {n} bytes at offset {} but {left} are left",
+                self.pos
+            )));
+        }
+        let s = &self.bytes[self.pos..self.pos + n];
+        self.pos += n;
+        Ok(s)
+    }
+
+    fn u8(&mut self, what: &str) -> Result<u8, CodecError> {
+        Ok(self.take(1, what)?[0])
+    }
+
+    fn u16(&mut self, what: &str) -> Result<u16, CodecError> {
+        Ok(u16::from_le_bytes(
+            self.take(2, what)?.try_into().expect("2 bytes"),
+        ))
+    }
+
+    fn u32(&mut self, what: &str) -> Result<u32, CodecError> {
+        Ok(u32::from_le_bytes(
+            self.take(4, what)?.try_into().expect("4 bytes"),
+        ))
+    }
+
+    fn u64(&mut self, what: &str) -> Result<u64, CodecError> {
+        Ok(u64::from_le_bytes(
+            self.take(8, what)?.try_into().expect("8 bytes"),
+        ))
+    }
+
+    fn f32(&mut self, what: &str) -> Result<f32, CodecError> {
+        Ok(f32::from_le_bytes(
+            self.take(4, what)?.try_into().expect("4 bytes"),
+        ))
+    }
+
+    fn left(&self) -> usize {
+        self.bytes.len() - self.pos
+    }
+}
+
+/// Reads a `.v5d` file.
+pub fn read_file(bytes: &[u8], limits: ReadLimits) -> Result<V5dFile, CodecError> {
+    if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
+        return Err(CodecError::NotV5d);
+    }
+    if bytes.len() < MIN_FILE_LEN {
+        return Err(CodecError::Truncated(format!(
+            "{} bytes, but the smallest .v5d file has {MIN_FILE_LEN}",
+            bytes.len()
+        )));
+    }
+    let version = u16::from_le_bytes([bytes[8], bytes[9]]);
+    if version != VERSION {
+        return Err(CodecError::Version(version));
+    }
+    let (body, tail) = bytes.split_at(bytes.len() - 4);
+    let stored = u32::from_le_bytes(tail.try_into().expect("4 bytes"));
+    let computed = crc32(body);
+    if stored != computed {
+        return Err(CodecError::Checksum { stored, computed });
+    }
+    parse_body(body, limits)
+}
+
+/// Parses everything before the checksum.
+fn parse_body(body: &[u8], limits: ReadLimits) -> Result<V5dFile, CodecError> {
+    let mut c = Cursor {
+        bytes: body,
+        pos: MAGIC.len() + 2,
+    };
+    let coding_byte = c.u8("the coding")?;
+    let coding = Coding::from_byte(coding_byte)
+        .ok_or_else(|| CodecError::Corrupt(format!("unknown coding {coding_byte}")))?;
+    let grid_bits = c.u8("the grid bits")? as u32;
+    if !(1..=16).contains(&grid_bits) {
+        return Err(CodecError::Corrupt(format!(
+            "grid bits {grid_bits} outside 1..=16"
+        )));
+    }
+    let objects = c.u32("the object count")? as usize;
+    let nodes = c.u32("the node count")? as usize;
+    let leaves = c.u32("the leaf count")? as usize;
+    if leaves == 0 || nodes as u64 != 2 * leaves as u64 - 1 {
+        return Err(CodecError::Corrupt(format!(
+            "{nodes} nodes and {leaves} leaves do not make a binary tree"
+        )));
+    }
+    let fingerprint = c.u64("the fingerprint")?;
+    let mut root = Cell {
+        lo: [0.0; DIMS],
+        hi: [0.0; DIMS],
+    };
+    for d in 0..DIMS {
+        root.lo[d] = c.f32("the root cell")?;
+    }
+    for d in 0..DIMS {
+        root.hi[d] = c.f32("the root cell")?;
+    }
+    if !(0..DIMS)
+        .all(|d| root.lo[d].is_finite() && root.hi[d].is_finite() && root.lo[d] < root.hi[d])
+    {
+        return Err(CodecError::Corrupt(format!(
+            "the root cell {root:?} is not a box"
+        )));
+    }
+    let params_len = c.u32("the parameter length")? as usize;
+    let params = std::str::from_utf8(c.take(params_len, "the parameters")?)
+        .map_err(|_| CodecError::Corrupt("the parameters are not UTF-8".into()))?
+        .to_owned();
+    // Each object takes at least 6 bytes: bound the count before
+    // allocating the table.
+    if objects > c.left() / 6 {
+        return Err(CodecError::Truncated(format!(
+            "{objects} objects cannot fit in the {} bytes left",
+            c.left()
+        )));
+    }
+    let words = objects.div_ceil(64);
+    let per_node = words * 8 + 64;
+    let max_nodes = limits.max_decoded_bytes / per_node.max(1);
+    if nodes > max_nodes {
+        return Err(CodecError::TooLarge(format!(
+            "{nodes} nodes of {objects} objects would take more than {} bytes decoded",
+            limits.max_decoded_bytes
+        )));
+    }
+    let mut table = Vec::with_capacity(objects);
+    for i in 0..objects {
+        let triangles = c.u32("an object's triangle count")?;
+        let len = c.u16("an object's name length")? as usize;
+        let name = std::str::from_utf8(c.take(len, "an object's name")?)
+            .map_err(|_| CodecError::Corrupt(format!("object {i}'s name is not UTF-8")))?;
+        table.push(FileObject {
+            name: name.to_owned(),
+            triangles,
+        });
+    }
+    let bits = c.u64("the tree's bit length")?;
+    let tree_bytes = bits.div_ceil(8);
+    if tree_bytes != c.left() as u64 {
+        return Err(CodecError::Corrupt(format!(
+            "the tree has {bits} bits but {} bytes follow",
+            c.left()
+        )));
+    }
+    let bytes = c.take(tree_bytes as usize, "the tree")?;
+    if bits % 8 != 0 && bytes.last().is_some_and(|&b| b >> (bits % 8) != 0) {
+        return Err(CodecError::Corrupt(
+            "the tree's padding bits are not zero".into(),
+        ));
+    }
+    let tree = decode(
+        bytes,
+        bits,
+        coding,
+        root,
+        grid_bits,
+        objects,
+        DecodeLimits { max_nodes: nodes },
+    )?;
+    if tree.nodes().len() != nodes || tree.leaf_count() != leaves {
+        return Err(CodecError::Corrupt(format!(
+            "the header says {nodes} nodes, the tree has {}",
+            tree.nodes().len()
+        )));
+    }
+    Ok(V5dFile {
+        coding,
+        fingerprint,
+        params,
+        objects: table,
+        tree,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crc32_check_value() {
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+        assert_eq!(crc32(b""), 0);
+    }
+
+    #[test]
+    fn fingerprint_sees_geometry_not_names() {
+        let a = [[Vec3::ZERO, Vec3::X, Vec3::Y]];
+        let b = [[Vec3::ZERO, Vec3::X, Vec3::Y * 1.000_001]];
+        let f = |objs: &[&[[Vec3; 3]]]| geometry_fingerprint(objs.iter().copied());
+        assert_eq!(f(&[&a]), f(&[&a]));
+        assert_ne!(f(&[&a]), f(&[&b]));
+        assert_ne!(f(&[&a, &a]), f(&[&a]));
+        assert_ne!(f(&[&a, &[]]), f(&[&a]));
+    }
+}

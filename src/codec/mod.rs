@@ -1,0 +1,48 @@
+//! Storing trees: the three bitset codings of papers/003 sec. 6 and the
+//! `.v5d` file format (specified in `notes/format.md`).
+//!
+//! Part of the runtime side: no builder dependency.
+
+mod codec_bits;
+mod codec_file;
+mod codec_tree;
+
+pub use codec_bits::{BitReader, BitWriter};
+pub use codec_file::{
+    FileObject, MAGIC, MIN_FILE_LEN, ReadLimits, V5dFile, VERSION, crc32, geometry_fingerprint,
+    read_file, write_file,
+};
+pub use codec_tree::{CodeSize, Coding, DecodeLimits, code_size, decode, encode};
+
+/// Why a `.v5d` file cannot be read. Messages say what is wrong; the
+/// caller adds the file's name.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum CodecError {
+    /// The magic bytes are missing: this is some other kind of file.
+    #[error("not a .v5d file (it does not start with the .v5d magic bytes)")]
+    NotV5d,
+    /// Written by another version of the format.
+    #[error(
+        "unsupported .v5d format version {0}: this vis5d reads version {VERSION}; rebuild the file"
+    )]
+    Version(u16),
+    /// The file ends early.
+    #[error("truncated: {0}")]
+    Truncated(String),
+    /// The checksum does not match: the bytes were damaged.
+    #[error(
+        "checksum mismatch (stored {stored:08x}, computed {computed:08x}): the file is damaged; rebuild or copy it again"
+    )]
+    Checksum {
+        /// The CRC-32 stored in the file.
+        stored: u32,
+        /// The CRC-32 of its bytes.
+        computed: u32,
+    },
+    /// A field holds an impossible value.
+    #[error("corrupt: {0}")]
+    Corrupt(String),
+    /// Decoding would take more memory than allowed.
+    #[error("too large to decode: {0}")]
+    TooLarge(String),
+}

@@ -1,0 +1,311 @@
+//! The `.v5d` file and the runtime queries: round trips, queries against
+//! brute force and against rendered rays, the fingerprint, bad files.
+
+use std::sync::OnceLock;
+
+use glam::Vec3;
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+use vis5d::bitset::ObjectSet;
+use vis5d::build::{BuildParams, build, to_file, view_rays};
+use vis5d::codec::{self, CodecError, Coding, ReadLimits};
+use vis5d::geom::Aabb;
+use vis5d::geom::cell::{Cell, DIMS, direction_to_angles};
+use vis5d::query::{Pvs, View};
+use vis5d::scene::{self, Scene};
+use vis5d::trace::Tracer;
+use vis5d::tree::VisTree;
+
+/// The committed apartment, its tracer and its default tree, built once.
+fn apartment() -> &'static (Scene, Tracer, VisTree) {
+    static CELL: OnceLock<(Scene, Tracer, VisTree)> = OnceLock::new();
+    CELL.get_or_init(|| {
+        let s = scene::load(crate::committed("apartment.obj")).unwrap();
+        let t = Tracer::new(&s);
+        let (tree, _) = build(&s, &t, &BuildParams::default(), &|_| {}).unwrap();
+        (s, t, tree)
+    })
+}
+
+fn file_bytes(coding: Option<Coding>) -> Vec<u8> {
+    let (s, _, tree) = apartment();
+    codec::write_file(&to_file(s, tree.clone(), &BuildParams::default(), coding))
+}
+
+#[test]
+fn files_round_trip_in_every_coding() {
+    let (s, _, tree) = apartment();
+    let mut sizes = Vec::new();
+    for coding in Coding::ALL {
+        let bytes = file_bytes(Some(coding));
+        let f = codec::read_file(&bytes, ReadLimits::default()).unwrap();
+        assert_eq!(&f.tree, tree, "{coding}");
+        assert_eq!(f.coding, coding);
+        assert_eq!(f.fingerprint, s.fingerprint());
+        assert_eq!(f.objects.len(), s.objects().len());
+        assert_eq!(f.objects[3].name, s.objects()[3].name);
+        assert_eq!(
+            f.objects[3].triangles as usize,
+            s.objects()[3].triangle_count()
+        );
+        assert!(f.params.contains("s_thresh=0.01\n"), "{}", f.params);
+        sizes.push(bytes.len());
+    }
+    // On this occluded scene each coding is smaller than the one before,
+    // and the default is the smallest.
+    assert!(sizes[0] > sizes[1] && sizes[1] > sizes[2], "{sizes:?}");
+    assert_eq!(file_bytes(None).len(), sizes[2]);
+    // The same inputs give the same bytes.
+    assert_eq!(file_bytes(None), file_bytes(None));
+}
+
+#[test]
+fn the_leaf_found_by_the_query_holds_the_builders_set() {
+    let (_, _, tree) = apartment();
+    let pvs = Pvs::from_bytes(&file_bytes(None)).unwrap();
+    let root = tree.root_cell();
+    let mut rng = Pcg64::seed_from_u64(11);
+    for _ in 0..20_000 {
+        let p: [f32; DIMS] = root.sample([
+            rng.random(),
+            rng.random(),
+            rng.random(),
+            rng.random(),
+            rng.random(),
+        ]);
+        let leaf = tree.locate(p);
+        assert_eq!(pvs.leaf_set(p), tree.nodes()[leaf].set.words());
+    }
+}
+
+/// Whether the closed range meets the half-open cell (the query's rule).
+fn meets(range: &Cell, cell: &Cell, root: &Cell) -> bool {
+    (0..DIMS).all(|d| {
+        let below_hi = if cell.hi[d] == root.hi[d] {
+            range.lo[d] <= cell.hi[d]
+        } else {
+            range.lo[d] < cell.hi[d]
+        };
+        below_hi && range.hi[d] >= cell.lo[d]
+    })
+}
+
+#[test]
+fn range_queries_equal_a_linear_scan_of_the_leaves() {
+    let (_, _, tree) = apartment();
+    let pvs = Pvs::from_bytes(&file_bytes(Some(Coding::Parent))).unwrap();
+    let root = tree.root_cell();
+    let leaves = tree.leaves();
+    let mut rng = Pcg64::seed_from_u64(12);
+    let mut out = pvs.new_set();
+    for k in 0..2_000 {
+        let a = root.sample([
+            rng.random(),
+            rng.random(),
+            rng.random(),
+            rng.random(),
+            rng.random(),
+        ]);
+        let b = root.sample([
+            rng.random(),
+            rng.random(),
+            rng.random(),
+            rng.random(),
+            rng.random(),
+        ]);
+        let mut range = Cell { lo: a, hi: a };
+        for d in 0..DIMS {
+            // Small ranges mostly, some large; some exactly on split planes.
+            let f = if k % 4 == 0 { 1.0 } else { 0.05 };
+            range.lo[d] = a[d].min(a[d] + (b[d] - a[d]) * f);
+            range.hi[d] = a[d].max(a[d] + (b[d] - a[d]) * f);
+        }
+        if k % 7 == 0 {
+            let l = leaves[k % leaves.len()].cell;
+            range = Cell { lo: l.lo, hi: l.lo };
+        }
+        let positions = Aabb::new(
+            Vec3::new(range.lo[0], range.lo[1], range.lo[2]),
+            Vec3::new(range.hi[0], range.hi[1], range.hi[2]),
+        );
+        pvs.query_range(
+            &positions,
+            (range.lo[3], range.hi[3]),
+            (range.lo[4], range.hi[4]),
+            &mut out,
+        );
+        let mut want = ObjectSet::new(tree.object_count());
+        for l in leaves.iter().filter(|l| meets(&range, &l.cell, &root)) {
+            want.union_with(&tree.nodes()[l.node].set);
+        }
+        assert_eq!(out, want, "range {range:?}");
+    }
+}
+
+#[test]
+fn a_view_query_holds_every_pixel_rays_leaf_set() {
+    let (s, tracer, tree) = apartment();
+    let pvs = Pvs::from_bytes(&file_bytes(None)).unwrap();
+    let space = tree.root_cell().space();
+    let mut rng = Pcg64::seed_from_u64(13);
+    let mut out = pvs.new_set();
+    let mut sizes = 0;
+    for k in 0..150 {
+        let eye = space.lerp(Vec3::new(rng.random(), rng.random(), rng.random()));
+        let z = rng.random_range(-1.0..1.0f32);
+        let a = rng.random_range(0.0..std::f32::consts::TAU);
+        let mut dir = Vec3::new(
+            (1.0 - z * z).sqrt() * a.cos(),
+            (1.0 - z * z).sqrt() * a.sin(),
+            z,
+        );
+        if k % 10 == 0 {
+            dir = [-Vec3::X, Vec3::Z, -Vec3::Z][k / 10 % 3]; // wrap-around and the poles
+        }
+        let fov = [60.0, 90.0, 120.0][k % 3];
+        let view = View::square(eye, dir, fov);
+        pvs.query_view(&view, &mut out);
+        sizes += out.count();
+        let rays = view_rays(eye, dir, 32, fov);
+        let _ = tracer;
+        for r in &rays {
+            let (t, p) = direction_to_angles(r.dir);
+            let leaf = tree.locate([eye.x, eye.y, eye.z, t, p]);
+            assert!(
+                tree.nodes()[leaf].set.is_subset(&out),
+                "view {k}: a pixel's leaf set is not in the view's answer"
+            );
+        }
+    }
+    // And it culls: on average well under the whole scene.
+    let mean = sizes as f64 / 150.0;
+    assert!(mean < 0.6 * s.objects().len() as f64, "mean answer {mean}");
+}
+
+#[test]
+fn positions_outside_the_view_box_cull_nothing() {
+    let pvs = Pvs::from_bytes(&file_bytes(None)).unwrap();
+    let mut out = pvs.new_set();
+    pvs.query_view(
+        &View::square(Vec3::new(100.0, 0.0, 0.0), Vec3::X, 90.0),
+        &mut out,
+    );
+    assert_eq!(out.count(), pvs.object_count());
+}
+
+#[test]
+fn the_fingerprint_check_fires_when_the_scene_changes() {
+    let (s, _, _) = apartment();
+    let pvs = Pvs::from_bytes(&file_bytes(None)).unwrap();
+    pvs.check_fingerprint(s.fingerprint()).unwrap();
+    // Another layout of the same kind of scene, and one moved vertex.
+    let other =
+        vis5d::scene::procedural::generate(vis5d::scene::procedural::SceneKind::Apartment, 2, 1);
+    let e = pvs.check_fingerprint(other.fingerprint()).unwrap_err();
+    assert!(
+        e.to_string().contains("another version of the scene"),
+        "{e}"
+    );
+    let mut text = std::fs::read_to_string(crate::committed("apartment.obj")).unwrap();
+    let at = text.find("\nv ").unwrap() + 3;
+    text.insert(at, '1');
+    let moved = scene::load_obj_bytes("moved.obj", text.as_bytes()).unwrap();
+    assert!(pvs.check_fingerprint(moved.fingerprint()).is_err());
+}
+
+#[test]
+fn damaged_files_are_refused_with_a_reason() {
+    let good = file_bytes(None);
+    let read = |b: &[u8]| codec::read_file(b, ReadLimits::default());
+    assert_eq!(
+        read(b"hello world, this is not a tree").unwrap_err(),
+        CodecError::NotV5d
+    );
+    assert_eq!(read(&[]).unwrap_err(), CodecError::NotV5d);
+    // Truncated anywhere.
+    for len in (0..good.len()).step_by(97).chain([8, 20, good.len() - 1]) {
+        let e = read(&good[..len]).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                CodecError::Truncated(_) | CodecError::NotV5d | CodecError::Checksum { .. }
+            ),
+            "{len}: {e}"
+        );
+    }
+    // A flipped bit anywhere past the magic and version: the checksum.
+    for k in (10 * 8..good.len() * 8).step_by(331) {
+        let mut b = good.clone();
+        b[k / 8] ^= 1 << (k % 8);
+        assert!(
+            matches!(read(&b).unwrap_err(), CodecError::Checksum { .. }),
+            "bit {k}"
+        );
+    }
+    // Another version.
+    let mut b = good.clone();
+    b[8] = 9;
+    assert_eq!(read(&b).unwrap_err(), CodecError::Version(9));
+    // Fields that lie, with a recomputed checksum.
+    let patch = |offset: usize, bytes: &[u8]| {
+        let mut b = good.clone();
+        b[offset..offset + bytes.len()].copy_from_slice(bytes);
+        let n = b.len() - 4;
+        let crc = codec::crc32(&b[..n]);
+        b[n..].copy_from_slice(&crc.to_le_bytes());
+        b
+    };
+    let cases: [(usize, Vec<u8>, &str); 6] = [
+        (10, vec![7], "unknown coding"),
+        (11, vec![0], "grid bits"),
+        (12, u32::MAX.to_le_bytes().to_vec(), "objects cannot fit"),
+        (16, 5u32.to_le_bytes().to_vec(), "binary tree"),
+        (
+            16,
+            (2 * 400_000_001u32 - 1).to_le_bytes().to_vec(),
+            "binary tree",
+        ),
+        (32, f32::NAN.to_le_bytes().to_vec(), "root cell"),
+    ];
+    for (offset, bytes, want) in cases {
+        let e = read(&patch(offset, &bytes)).unwrap_err();
+        assert!(e.to_string().contains(want), "offset {offset}: {e}");
+    }
+    // A huge tree claimed by a small file is refused before allocating.
+    let mut b = patch(16, &(2 * 300_000_000u32 - 1).to_le_bytes());
+    b[20..24].copy_from_slice(&300_000_000u32.to_le_bytes());
+    let n = b.len() - 4;
+    let crc = codec::crc32(&b[..n]);
+    b[n..].copy_from_slice(&crc.to_le_bytes());
+    let small = ReadLimits {
+        max_decoded_bytes: 1 << 20,
+    };
+    assert!(matches!(
+        codec::read_file(&b, small).unwrap_err(),
+        CodecError::TooLarge(_)
+    ));
+}
+
+#[test]
+fn regression_corpus_decodes_without_panicking() {
+    // Inputs kept from the fuzzer's corpus and its crashes (fuzz/README.md):
+    // each must be refused or decoded, never panic, loop or allocate
+    // without bound. Files hold the input without its checksum.
+    let dir = crate::root().join("tests/v5d_corpus");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let mut bytes = std::fs::read(&path).unwrap();
+        // As the fuzz target: the input, then its correct checksum.
+        let _ = Pvs::from_bytes(&bytes);
+        let crc = codec::crc32(&bytes);
+        bytes.extend_from_slice(&crc.to_le_bytes());
+        if let Ok(pvs) = Pvs::from_bytes(&bytes) {
+            let mut out = pvs.new_set();
+            let c = pvs.root_cell().space().center();
+            pvs.query_view(&View::square(c, Vec3::X, 90.0), &mut out);
+        }
+        n += 1;
+    }
+    assert!(n > 0, "no corpus in {}", dir.display());
+}
