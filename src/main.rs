@@ -12,7 +12,7 @@ use clap::{Args, Parser, Subcommand};
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
-use vis5d::build::{BuildParams, BuildStats, PixelError, TreeSummary, VerifyParams};
+use vis5d::build::{BuildParams, BuildStats, PixelError, VerifyParams};
 use vis5d::codec::{self, Coding, code_size};
 use vis5d::geom::Aabb;
 use vis5d::query::{Pvs, View};
@@ -20,7 +20,7 @@ use vis5d::scene::procedural::{self, SceneKind};
 use vis5d::scene::{self, Scene};
 use vis5d::sprt::SprtParams;
 use vis5d::trace::Tracer;
-use vis5d::tree::VisTree;
+use vis5d::tree::{TreeSummary, VisTree};
 
 /// Precomputed from-region visibility for static 3D scenes.
 ///
@@ -557,14 +557,8 @@ struct BuildReport {
     view_box: [[f32; 3]; 2],
     threads: usize,
     seed: u64,
-    nodes: usize,
-    leaves: usize,
-    depth: u32,
-    mean_leaf_objects: f64,
-    max_leaf_objects: usize,
-    mean_leaf_triangles: f64,
-    max_leaf_triangles: u64,
-    measure_weighted_leaf_objects: f64,
+    #[serde(flatten)]
+    tree: ShapeReport,
     rays_cast: u64,
     cell_rays: u64,
     object_rays: u64,
@@ -575,6 +569,59 @@ struct BuildReport {
     pixel_error: Option<PixelErrorReport>,
     coding_sizes: Vec<CodingSize>,
     written: Option<Written>,
+}
+
+/// A tree's shape and set sizes, as `build` and `stat` report them.
+#[derive(Serialize)]
+struct ShapeReport {
+    nodes: usize,
+    leaves: usize,
+    depth: u32,
+    mean_leaf_objects: f64,
+    max_leaf_objects: usize,
+    mean_leaf_triangles: f64,
+    max_leaf_triangles: u64,
+    measure_weighted_leaf_objects: f64,
+}
+
+impl From<TreeSummary> for ShapeReport {
+    fn from(s: TreeSummary) -> Self {
+        Self {
+            nodes: s.nodes,
+            leaves: s.leaves,
+            depth: s.depth,
+            mean_leaf_objects: s.mean_leaf_objects,
+            max_leaf_objects: s.max_leaf_objects,
+            mean_leaf_triangles: s.mean_leaf_triangles,
+            max_leaf_triangles: s.max_leaf_triangles,
+            measure_weighted_leaf_objects: s.measure_weighted_objects,
+        }
+    }
+}
+
+/// Prints the view box and the tree's shape, for `build` and `stat`.
+fn print_shape(out: &mut impl Write, [min, max]: [[f32; 3]; 2], t: &ShapeReport) -> io::Result<()> {
+    writeln!(
+        out,
+        "  view box         {} .. {}",
+        fmt_vec(min),
+        fmt_vec(max)
+    )?;
+    writeln!(
+        out,
+        "  tree             {} nodes, {} leaves, depth {}",
+        t.nodes, t.leaves, t.depth
+    )?;
+    writeln!(
+        out,
+        "  leaf sets        mean {:.1} objects ({:.0} triangles), max {} objects ({} triangles)",
+        t.mean_leaf_objects, t.mean_leaf_triangles, t.max_leaf_objects, t.max_leaf_triangles
+    )?;
+    writeln!(
+        out,
+        "                   {:.1} objects for a random view ray (measure-weighted)",
+        t.measure_weighted_leaf_objects
+    )
 }
 
 /// The size of a tree in one coding.
@@ -717,7 +764,7 @@ fn build(args: &BuildArgs) -> Result<()> {
         args,
         &params,
         &scene,
-        &summary,
+        summary,
         &stats,
         verify.as_ref(),
         [load_seconds, bvh_seconds, verify_seconds],
@@ -754,7 +801,7 @@ fn build_report(
     args: &BuildArgs,
     params: &BuildParams,
     scene: &Scene,
-    s: &TreeSummary,
+    s: TreeSummary,
     stats: &BuildStats,
     verify: Option<&PixelError>,
     [load, bvh, verify_seconds]: [f64; 3],
@@ -769,14 +816,7 @@ fn build_report(
         view_box: [b.min.to_array(), b.max.to_array()],
         threads,
         seed: params.seed,
-        nodes: s.nodes,
-        leaves: s.leaves,
-        depth: s.depth,
-        mean_leaf_objects: s.mean_leaf_objects,
-        max_leaf_objects: s.max_leaf_objects,
-        mean_leaf_triangles: s.mean_leaf_triangles,
-        max_leaf_triangles: s.max_leaf_triangles,
-        measure_weighted_leaf_objects: s.measure_weighted_objects,
+        tree: s.into(),
         rays_cast: stats.rays(),
         cell_rays: stats.cell_rays,
         object_rays: stats.object_rays,
@@ -816,33 +856,12 @@ fn build_report(
 }
 
 fn print_build(out: &mut impl Write, r: &BuildReport) -> io::Result<()> {
-    let [min, max] = r.view_box;
     writeln!(
         out,
         "{}: {} objects, {} triangles",
         r.file, r.objects, r.triangles
     )?;
-    writeln!(
-        out,
-        "  view box         {} .. {}",
-        fmt_vec(min),
-        fmt_vec(max)
-    )?;
-    writeln!(
-        out,
-        "  tree             {} nodes, {} leaves, depth {}",
-        r.nodes, r.leaves, r.depth
-    )?;
-    writeln!(
-        out,
-        "  leaf sets        mean {:.1} objects ({:.0} triangles), max {} objects ({} triangles)",
-        r.mean_leaf_objects, r.mean_leaf_triangles, r.max_leaf_objects, r.max_leaf_triangles
-    )?;
-    writeln!(
-        out,
-        "                   {:.1} objects for a random view ray (measure-weighted)",
-        r.measure_weighted_leaf_objects
-    )?;
+    print_shape(out, r.view_box, &r.tree)?;
     writeln!(
         out,
         "  rays             {} cast ({} cell, {} object samples), {} samples rejected, {:.2} M/s",
@@ -918,13 +937,8 @@ struct StatReport {
     fingerprint: String,
     root_cell: [[f32; 5]; 2],
     params: Vec<(String, String)>,
-    nodes: usize,
-    leaves: usize,
-    depth: u32,
-    mean_leaf_objects: f64,
-    max_leaf_objects: usize,
-    mean_leaf_triangles: f64,
-    max_leaf_triangles: u64,
+    #[serde(flatten)]
+    tree: ShapeReport,
     coding_sizes: Vec<CodingSize>,
 }
 
@@ -939,19 +953,8 @@ fn read_v5d(path: &Path) -> Result<(Vec<u8>, codec::V5dFile)> {
 fn stat(args: &StatArgs) -> Result<()> {
     let (bytes, file) = read_v5d(&args.file)?;
     let tree = &file.tree;
-    let leaves = tree.leaves();
-    let tris = |set: &vis5d::bitset::ObjectSet| -> u64 {
-        set.iter().map(|o| file.objects[o].triangles as u64).sum()
-    };
-    let (mut sum_o, mut sum_t, mut max_o, mut max_t) = (0usize, 0u64, 0usize, 0u64);
-    for l in &leaves {
-        let set = &tree.nodes()[l.node].set;
-        let (o, t) = (set.count(), tris(set));
-        sum_o += o;
-        sum_t += t;
-        max_o = max_o.max(o);
-        max_t = max_t.max(t);
-    }
+    let triangles: Vec<u64> = file.objects.iter().map(|o| o.triangles as u64).collect();
+    let summary = tree.summarize(&triangles);
     let root = tree.root_cell();
     let report = StatReport {
         file: args.file.display().to_string(),
@@ -968,13 +971,7 @@ fn stat(args: &StatArgs) -> Result<()> {
             .filter_map(|l| l.split_once('='))
             .map(|(k, v)| (k.to_owned(), v.to_owned()))
             .collect(),
-        nodes: tree.nodes().len(),
-        leaves: leaves.len(),
-        depth: tree.depth(),
-        mean_leaf_objects: sum_o as f64 / leaves.len() as f64,
-        max_leaf_objects: max_o,
-        mean_leaf_triangles: sum_t as f64 / leaves.len() as f64,
-        max_leaf_triangles: max_t,
+        tree: summary.into(),
         coding_sizes: coding_sizes(tree),
     };
     let mut out = io::stdout().lock();
@@ -996,21 +993,11 @@ fn stat(args: &StatArgs) -> Result<()> {
     )?;
     writeln!(out, "  objects          {}", r.objects)?;
     writeln!(out, "  scene            fingerprint {}", r.fingerprint)?;
-    writeln!(
-        out,
-        "  view box         ({}, {}, {}) .. ({}, {}, {})",
-        root.lo[0], root.lo[1], root.lo[2], root.hi[0], root.hi[1], root.hi[2]
-    )?;
-    writeln!(
-        out,
-        "  tree             {} nodes, {} leaves, depth {}",
-        r.nodes, r.leaves, r.depth
-    )?;
-    writeln!(
-        out,
-        "  leaf sets        mean {:.1} objects ({:.0} triangles), max {} objects ({} triangles)",
-        r.mean_leaf_objects, r.mean_leaf_triangles, r.max_leaf_objects, r.max_leaf_triangles
-    )?;
+    let space = [
+        [root.lo[0], root.lo[1], root.lo[2]],
+        [root.hi[0], root.hi[1], root.hi[2]],
+    ];
+    print_shape(&mut out, space, &r.tree)?;
     writeln!(out, "  coded tree size  structure bits + set bits = bytes")?;
     for c in &r.coding_sizes {
         let mark = if c.coding == r.coding {

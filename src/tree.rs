@@ -54,6 +54,28 @@ pub struct LeafCell {
     pub depth: u32,
 }
 
+/// The shape of a tree and the sizes of its leaves' sets.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TreeSummary {
+    /// All nodes.
+    pub nodes: usize,
+    /// Leaves.
+    pub leaves: usize,
+    /// The deepest leaf.
+    pub depth: u32,
+    /// The mean number of objects in a leaf's set.
+    pub mean_leaf_objects: f64,
+    /// The largest leaf set, in objects.
+    pub max_leaf_objects: usize,
+    /// The mean number of triangles in a leaf's set.
+    pub mean_leaf_triangles: f64,
+    /// The largest leaf set, in triangles.
+    pub max_leaf_triangles: u64,
+    /// The mean leaf set in objects, weighted by the leaves' measure: the
+    /// expected set of a random view ray.
+    pub measure_weighted_objects: f64,
+}
+
 /// A 5D k-d tree of visible sets.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VisTree {
@@ -149,6 +171,35 @@ impl VisTree {
     /// The largest leaf depth.
     pub fn depth(&self) -> u32 {
         self.leaves().iter().map(|l| l.depth).max().unwrap_or(0)
+    }
+
+    /// The tree's shape and leaf set sizes; `triangles[i]` is object i's
+    /// triangle count.
+    pub fn summarize(&self, triangles: &[u64]) -> TreeSummary {
+        let leaves = self.leaves();
+        let root = self.root.measure();
+        let mut s = TreeSummary {
+            nodes: self.nodes.len(),
+            leaves: leaves.len(),
+            ..Default::default()
+        };
+        for l in &leaves {
+            let set = &self.nodes[l.node].set;
+            let n = set.count();
+            let t: u64 = set
+                .iter()
+                .map(|o| triangles.get(o).copied().unwrap_or(0))
+                .sum();
+            s.depth = s.depth.max(l.depth);
+            s.mean_leaf_objects += n as f64;
+            s.mean_leaf_triangles += t as f64;
+            s.max_leaf_objects = s.max_leaf_objects.max(n);
+            s.max_leaf_triangles = s.max_leaf_triangles.max(t);
+            s.measure_weighted_objects += n as f64 * l.cell.measure() / root;
+        }
+        s.mean_leaf_objects /= leaves.len() as f64;
+        s.mean_leaf_triangles /= leaves.len() as f64;
+        s
     }
 
     /// Checks the invariants of the module docs; returns the first broken

@@ -48,7 +48,7 @@ use crate::geom::cell::{Cell, THETA};
 use crate::scene::Scene;
 use crate::sprt::SprtParams;
 use crate::trace::Tracer;
-use crate::tree::VisTree;
+use crate::tree::{TreeSummary, VisTree};
 
 /// Every parameter of a build. [`BuildParams::default`] is the measured
 /// default (notes/build.md says how each value was chosen).
@@ -338,56 +338,15 @@ impl BuildStats {
     }
 }
 
-/// The shape of a built tree and its sets.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct TreeSummary {
-    /// All nodes.
-    pub nodes: usize,
-    /// Leaves.
-    pub leaves: usize,
-    /// The deepest leaf.
-    pub depth: u32,
-    /// The mean number of objects in a leaf's set.
-    pub mean_leaf_objects: f64,
-    /// The largest leaf set, in objects.
-    pub max_leaf_objects: usize,
-    /// The mean number of triangles in a leaf's set.
-    pub mean_leaf_triangles: f64,
-    /// The largest leaf set, in triangles.
-    pub max_leaf_triangles: u64,
-    /// The mean leaf set in objects, weighted by the leaves' measure: the
-    /// expected set of a random view ray.
-    pub measure_weighted_objects: f64,
-}
-
-/// Summarises `tree` built for `scene`.
+/// The shape and set sizes of `tree` built for `scene`
+/// ([`VisTree::summarize`] with the scene's triangle counts).
 pub fn summarize(tree: &VisTree, scene: &Scene) -> TreeSummary {
     let tris: Vec<u64> = scene
         .objects()
         .iter()
         .map(|o| o.triangle_count() as u64)
         .collect();
-    let leaves = tree.leaves();
-    let root = tree.root_cell().measure();
-    let mut s = TreeSummary {
-        nodes: tree.nodes().len(),
-        leaves: leaves.len(),
-        ..Default::default()
-    };
-    for l in &leaves {
-        let set = &tree.nodes()[l.node].set;
-        let n = set.count();
-        let t: u64 = set.iter().map(|o| tris[o]).sum();
-        s.depth = s.depth.max(l.depth);
-        s.mean_leaf_objects += n as f64;
-        s.mean_leaf_triangles += t as f64;
-        s.max_leaf_objects = s.max_leaf_objects.max(n);
-        s.max_leaf_triangles = s.max_leaf_triangles.max(t);
-        s.measure_weighted_objects += n as f64 * l.cell.measure() / root;
-    }
-    s.mean_leaf_objects /= leaves.len() as f64;
-    s.mean_leaf_triangles /= leaves.len() as f64;
-    s
+    tree.summarize(&tris)
 }
 
 /// Builds the tree of `scene` traced by `tracer` (built from the same
