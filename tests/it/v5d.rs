@@ -289,8 +289,9 @@ fn damaged_files_are_refused_with_a_reason() {
 #[test]
 fn regression_corpus_decodes_without_panicking() {
     // Inputs kept from the fuzzer's corpus and its crashes (fuzz/README.md):
-    // each must be refused or decoded, never panic, loop or allocate
-    // without bound. Files hold the input without its checksum.
+    // one per distinct outcome, each named after it. Each must be refused
+    // or decoded, never panic, loop or allocate without bound. Files hold
+    // the input without its checksum.
     let dir = crate::root().join("tests/v5d_corpus");
     let mut n = 0;
     for entry in std::fs::read_dir(&dir).unwrap() {
@@ -300,11 +301,20 @@ fn regression_corpus_decodes_without_panicking() {
         let _ = Pvs::from_bytes(&bytes);
         let crc = codec::crc32(&bytes);
         bytes.extend_from_slice(&crc.to_le_bytes());
-        if let Ok(pvs) = Pvs::from_bytes(&bytes) {
+        let decoded = Pvs::from_bytes(&bytes);
+        if let Ok(pvs) = &decoded {
             let mut out = pvs.new_set();
             let c = pvs.root_cell().space().center();
             pvs.query_view(&View::square(c, Vec3::X, 90.0), &mut out);
         }
+        // Files are named after what reading them must give.
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        assert_eq!(
+            decoded.is_ok(),
+            name.starts_with("ok_"),
+            "{name}: {:?}",
+            decoded.err()
+        );
         n += 1;
     }
     assert!(n > 0, "no corpus in {}", dir.display());
