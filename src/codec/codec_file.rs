@@ -278,7 +278,8 @@ fn parse_body(body: &[u8], limits: ReadLimits) -> Result<V5dFile, CodecError> {
         .all(|d| root.lo[d].is_finite() && root.hi[d].is_finite() && root.lo[d] < root.hi[d])
     {
         return Err(CodecError::Corrupt(format!(
-            "the root cell {root:?} is not a box"
+            "the root cell {:?} .. {:?} is not a box (finite, low < high)",
+            root.lo, root.hi
         )));
     }
     let params_len = c.u32("the parameter length")? as usize;
