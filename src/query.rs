@@ -19,10 +19,10 @@
 //! view box the tree was built for get every object (nothing was sampled
 //! there, so nothing may be culled).
 
-use std::f32::consts::{PI, TAU};
+use std::f32::consts::PI;
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use crate::bitset::ObjectSet;
 use crate::codec::{CodecError, Coding, FileObject, ReadLimits, read_file};
@@ -137,73 +137,92 @@ impl AngularRanges {
 
 /// Angular boxes that contain every direction of the frustum looking along
 /// `dir` with `up`, `fov_x` by `fov_y` radians: one box, or two when the
-/// theta range crosses +-pi. A frustum containing a pole covers every
-/// theta. Bounds are padded by 1e-4 rad.
+/// theta range crosses +-pi. A frustum containing (or passing within 0.01
+/// rad of) a pole covers every theta. Bounds are padded by 1e-4 rad.
 ///
 /// The frustum's directions are a spherical quadrilateral. Theta is
 /// monotone along any great-circle arc that misses the poles, so the theta
 /// range is found by walking the four edges and unwrapping; phi's extremes
 /// are at the corners, at the highest or lowest point of an edge's great
-/// circle when it falls on the edge, or at a pole inside.
+/// circle when it falls on the edge, or at a pole inside. Computed in f64.
+/// When the frame is ill-defined (`up` within 1e-3 rad of `dir`) or the
+/// frustum nearly flat (a field of view above 170 degrees), the answer is
+/// the cone around `dir` that holds the frustum whatever its roll.
 pub fn frustum_angles(dir: Vec3, up: Vec3, fov_x: f32, fov_y: f32) -> AngularRanges {
-    const PAD: f32 = 1e-4;
     let full = AngularRanges::one((-PI, PI, 0.0, PI));
-    let f = dir.normalize_or_zero();
-    if f == Vec3::ZERO || !(fov_x < PI && fov_y < PI) || !f.is_finite() {
+    let f = dir.as_dvec3();
+    let len = f.length();
+    if !(len > 0.0 && len.is_finite() && fov_x >= 0.0 && fov_y >= 0.0) || fov_x >= PI || fov_y >= PI
+    {
         return full;
     }
-    let mut r = f.cross(up).normalize_or_zero();
-    if r == Vec3::ZERO {
-        r = f.any_orthonormal_vector();
+    let f = f / len;
+    let (tx, ty) = ((fov_x as f64 * 0.5).tan(), (fov_y as f64 * 0.5).tan());
+    let up = up.as_dvec3();
+    let r0 = f.cross(up);
+    let flat = fov_x.max(fov_y) as f64 > 170f64.to_radians();
+    let degenerate = r0.length() <= 1e-3 * up.length() || r0.length().is_nan();
+    if degenerate || flat {
+        return cone_angles(f, tx.hypot(ty).atan());
     }
+    let r = (r0 - f * r0.dot(f)).normalize();
     let u = r.cross(f);
-    let (tx, ty) = ((fov_x * 0.5).max(0.0).tan(), (fov_y * 0.5).max(0.0).tan());
+    let phi = |v: DVec3| v.x.hypot(v.y).atan2(v.z);
     let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
         .map(|(sx, sy)| (f + r * (sx * tx) + u * (sy * ty)).normalize());
-    let inside = |v: Vec3| {
+    // A pole inside, or on the boundary to within the padding.
+    let inside = |v: DVec3| {
         let z = v.dot(f);
-        z > 0.0 && v.dot(r).abs() <= tx * z && v.dot(u).abs() <= ty * z
+        z > 0.0
+            && v.dot(r).abs() <= (tx + PAD * (1.0 + tx * tx)) * z
+            && v.dot(u).abs() <= (ty + PAD * (1.0 + ty * ty)) * z
     };
-    let (north, south) = (inside(Vec3::Z), inside(-Vec3::Z));
-    // The z range.
-    let mut zmin = corners.iter().map(|c| c.z).fold(f32::INFINITY, f32::min);
-    let mut zmax = corners
+    let (north, south) = (inside(DVec3::Z), inside(-DVec3::Z));
+    let mut phi0 = corners
         .iter()
-        .map(|c| c.z)
-        .fold(f32::NEG_INFINITY, f32::max);
-    for k in 0..4 {
-        let (a, b) = (corners[k], corners[(k + 1) % 4]);
-        let n = a.cross(b).normalize_or_zero();
-        let m = (Vec3::Z - n * n.z).normalize_or_zero();
-        for p in [m, -m] {
-            if p != Vec3::ZERO && a.cross(p).dot(n) >= 0.0 && p.cross(b).dot(n) >= 0.0 {
-                zmin = zmin.min(p.z);
-                zmax = zmax.max(p.z);
+        .map(|&c| phi(c))
+        .fold(f64::INFINITY, f64::min);
+    let mut phi1 = corners
+        .iter()
+        .map(|&c| phi(c))
+        .fold(f64::NEG_INFINITY, f64::max);
+    // The edges' great circles, their planes from the frame (not from the
+    // corners, which lose precision for wide views): x = +-tx (vertical
+    // edges, spanned by f + r x and u) and y = +-ty (spanned by f + u y
+    // and r); a circle's highest point counts if it lies on the edge.
+    for s in [-1.0, 1.0] {
+        let edges = [
+            ((f + r * (s * tx)).cross(u), u, ty),
+            ((f + u * (s * ty)).cross(r), r, tx),
+        ];
+        for (n, along, half) in edges {
+            let n = n.normalize();
+            let m = DVec3::Z - n * n.z;
+            if m.length() < 1e-12 {
+                continue;
+            }
+            let m = m.normalize();
+            for p in [m, -m] {
+                let z = p.dot(f);
+                if z > 0.0 && p.dot(along).abs() <= half * z {
+                    phi0 = phi0.min(phi(p));
+                    phi1 = phi1.max(phi(p));
+                }
             }
         }
     }
     if north {
-        zmax = 1.0;
+        phi0 = 0.0;
     }
     if south {
-        zmin = -1.0;
+        phi1 = std::f64::consts::PI;
     }
-    let phi0 = (zmax.clamp(-1.0, 1.0).acos() - PAD).max(0.0);
-    let phi1 = (zmin.clamp(-1.0, 1.0).acos() + PAD).min(PI);
-    if north || south {
-        return AngularRanges::one((-PI, PI, phi0, phi1));
+    let (p0, p1) = (phi0 - PAD, phi1 + PAD);
+    if north || south || p0 < POLE_GUARD || p1 > std::f64::consts::PI - POLE_GUARD {
+        return AngularRanges::one((-PI, PI, (p0.max(0.0)) as f32, (p1 as f32).min(PI)));
     }
     // Theta: unwrap along the edges.
-    let theta = |v: Vec3| v.y.atan2(v.x);
-    let wrap = |d: f32| {
-        if d > PI {
-            d - TAU
-        } else if d < -PI {
-            d + TAU
-        } else {
-            d
-        }
-    };
+    let theta = |v: DVec3| v.y.atan2(v.x);
     let mut t = theta(corners[0]);
     let (mut tmin, mut tmax) = (t, t);
     for k in 1..4 {
@@ -211,22 +230,70 @@ pub fn frustum_angles(dir: Vec3, up: Vec3, fov_x: f32, fov_y: f32) -> AngularRan
         tmin = tmin.min(t);
         tmax = tmax.max(t);
     }
-    let (t0, t1) = (tmin - PAD, tmax + PAD);
+    theta_boxes(tmin - PAD, tmax + PAD, p0, p1)
+}
+
+/// Padding of the angular bounds, radians.
+const PAD: f64 = 1e-4;
+
+/// How close to a pole a view may come before its theta range is taken as
+/// all of it (theta is ill-conditioned there).
+const POLE_GUARD: f64 = 0.01;
+
+/// `d` wrapped into (-pi, pi].
+fn wrap(d: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    if d > PI {
+        d - TAU
+    } else if d <= -PI {
+        d + TAU
+    } else {
+        d
+    }
+}
+
+/// The boxes of the unwrapped theta range `[t0, t1]` (any span under 2 pi)
+/// times `[p0, p1]`.
+fn theta_boxes(t0: f64, t1: f64, p0: f64, p1: f64) -> AngularRanges {
+    use std::f64::consts::{PI, TAU};
+    let (p0, p1) = (p0.max(0.0) as f32, (p1 as f32).min(std::f32::consts::PI));
+    let c = |t: f64| t as f32;
     if t1 - t0 >= TAU {
-        AngularRanges::one((-PI, PI, phi0, phi1))
+        AngularRanges::one((-std::f32::consts::PI, std::f32::consts::PI, p0, p1))
     } else if t0 < -PI {
         AngularRanges {
-            boxes: [(t0 + TAU, PI, phi0, phi1), (-PI, t1, phi0, phi1)],
+            boxes: [
+                (c(t0 + TAU), std::f32::consts::PI, p0, p1),
+                (-std::f32::consts::PI, c(t1), p0, p1),
+            ],
             count: 2,
         }
     } else if t1 > PI {
         AngularRanges {
-            boxes: [(-PI, t1 - TAU, phi0, phi1), (t0, PI, phi0, phi1)],
+            boxes: [
+                (-std::f32::consts::PI, c(t1 - TAU), p0, p1),
+                (c(t0), std::f32::consts::PI, p0, p1),
+            ],
             count: 2,
         }
     } else {
-        AngularRanges::one((t0, t1, phi0, phi1))
+        AngularRanges::one((c(t0), c(t1), p0, p1))
     }
+}
+
+/// The boxes around the cone of directions within `half` radians of the
+/// unit vector `f`: phi within `half` of f's, theta within
+/// `asin(sin half / sin phi)` of f's (the widest a spherical cap reaches in
+/// longitude), every theta when the cap reaches a pole.
+fn cone_angles(f: DVec3, half: f64) -> AngularRanges {
+    let phi_f = f.x.hypot(f.y).atan2(f.z);
+    let (p0, p1) = (phi_f - half - PAD, phi_f + half + PAD);
+    if p0 < POLE_GUARD || p1 > std::f64::consts::PI - POLE_GUARD {
+        return AngularRanges::one((-PI, PI, p0.max(0.0) as f32, (p1 as f32).min(PI)));
+    }
+    let w = (half.sin() / phi_f.sin()).min(1.0).asin();
+    let t = f.y.atan2(f.x);
+    theta_boxes(t - w - PAD, t + w + PAD, p0, p1)
 }
 
 /// A loaded `.v5d` file, ready for queries.
@@ -406,7 +473,9 @@ impl Pvs {
         }
     }
 
-    /// Adds the objects of the range to `out`.
+    /// Adds the objects of the range to `out`. Angles are clipped to the
+    /// root (every direction's angles lie there); an empty range adds
+    /// nothing; a range with a NaN adds everything.
     fn accumulate(
         &self,
         positions: &Aabb,
@@ -414,9 +483,18 @@ impl Pvs {
         phi: (f32, f32),
         out: &mut ObjectSet,
     ) {
+        let nan = [theta.0, theta.1, phi.0, phi.1].iter().any(|a| a.is_nan())
+            || positions.min.is_nan()
+            || positions.max.is_nan();
+        let theta = (theta.0.max(-PI), theta.1.min(PI));
+        let phi = (phi.0.max(0.0), phi.1.min(PI));
+        let empty = theta.0 > theta.1 || phi.0 > phi.1 || !positions.min.cmple(positions.max).all();
+        if empty && !nan {
+            return;
+        }
         let space = self.root.space();
         let inside = positions.min.cmpge(space.min).all() && positions.max.cmple(space.max).all();
-        if !inside || !positions.min.is_finite() || !positions.max.is_finite() {
+        if nan || !inside || !positions.min.is_finite() || !positions.max.is_finite() {
             // Outside the view box: nothing was sampled, cull nothing.
             for o in 0..self.objects.len() {
                 out.insert(o);
@@ -463,33 +541,35 @@ impl Pvs {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::cell::{angles_to_direction, direction_to_angles};
+    use crate::geom::cell::angles_to_direction;
     use std::f32::consts::FRAC_PI_2;
 
-    /// Every direction of the frustum (a dense grid over it) lies in one
-    /// of the boxes.
+    /// Every direction of the frustum (a dense grid over it, the edges
+    /// included) lies in one of the boxes; angles in f64.
     fn check_frustum(dir: Vec3, up: Vec3, fx: f32, fy: f32) {
         let ranges = frustum_angles(dir, up, fx, fy);
-        let f = dir.normalize();
-        let mut r = f.cross(up).normalize_or_zero();
-        if r == Vec3::ZERO {
+        let f = dir.as_dvec3().normalize();
+        let mut r = f.cross(up.as_dvec3());
+        if r.length() < 1e-9 {
             r = f.any_orthonormal_vector();
         }
+        let r = (r - f * r.dot(f)).normalize();
         let u = r.cross(f);
-        let n = 40;
+        let (tx, ty) = ((fx as f64 * 0.5).tan(), (fy as f64 * 0.5).tan());
+        let n = 48;
         for i in 0..=n {
             for j in 0..=n {
-                let x = (i as f32 / n as f32 * 2.0 - 1.0) * (fx * 0.5).tan();
-                let y = (j as f32 / n as f32 * 2.0 - 1.0) * (fy * 0.5).tan();
+                let x = (i as f64 / n as f64 * 2.0 - 1.0) * tx;
+                let y = (j as f64 / n as f64 * 2.0 - 1.0) * ty;
                 let d = f + r * x + u * y;
-                let (t, p) = direction_to_angles(d);
-                let hit = ranges
-                    .boxes()
-                    .iter()
-                    .any(|&(t0, t1, p0, p1)| t >= t0 && t <= t1 && p >= p0 && p <= p1);
+                let (t, p) = (d.y.atan2(d.x), d.x.hypot(d.y).atan2(d.z));
+                let hit = ranges.boxes().iter().any(|&(t0, t1, p0, p1)| {
+                    let pole = !(1e-9..=std::f64::consts::PI - 1e-9).contains(&p);
+                    (pole || (t >= t0 as f64 && t <= t1 as f64)) && p >= p0 as f64 && p <= p1 as f64
+                });
                 assert!(
                     hit,
-                    "dir {dir} fov {fx} {fy}: ({t}, {p}) outside {:?}",
+                    "dir {dir} up {up} fov {fx} {fy}: ({t}, {p}) outside {:?}",
                     ranges.boxes()
                 );
             }
@@ -513,10 +593,29 @@ mod tests {
             check_frustum(dir, up, 1f32.to_radians(), 1f32.to_radians());
         }
         for k in 0..200 {
-            let t = -PI + (k as f32 * 0.618_034).fract() * TAU;
+            let t = -PI + (k as f32 * 0.618_034).fract() * 2.0 * PI;
             let p = (k as f32 * 0.414_213_6).fract() * PI;
             check_frustum(angles_to_direction(t, p), Vec3::Z, 1.2, 0.9);
         }
+    }
+
+    /// The counterexamples of the review (2026-11-26): up parallel to dir,
+    /// fields of view next to 180 degrees, a pole on the frustum's edge, a
+    /// tiny frustum next to a pole.
+    #[test]
+    fn frustum_boxes_hold_in_degenerate_cases() {
+        let d = Vec3::new(0.00504, 0.26157, 0.26164);
+        check_frustum(d, d * 3.0, 0.5, 0.5);
+        let tilt = d.normalize() + d.normalize().any_orthonormal_vector() * 1e-5;
+        check_frustum(d, tilt, 0.5, 0.5);
+        for eps in [1e-3f32, 1e-4, 1e-5, 1e-6] {
+            check_frustum(Vec3::new(-0.1427, 0.2206, 0.9649), Vec3::Z, PI - eps, 0.1);
+            check_frustum(Vec3::X, Vec3::Z, PI - eps, PI - eps);
+        }
+        let (e, t) = (0.77275f32, 0.77966f32);
+        let dir = Vec3::new(e.cos() * t.cos(), e.cos() * t.sin(), e.sin());
+        check_frustum(dir, Vec3::Z, 0.8, 2.0 * (PI / 2.0 - e));
+        check_frustum(Vec3::new(-4.75e-5, -2.08e-4, 1.0), Vec3::Z, 2.7e-4, 3.3e-4);
     }
 
     #[test]

@@ -22,6 +22,9 @@ use crate::geom::cell::{Cell, DIMS, grid_value};
 /// decoder refuses deeper files, so recursion over a tree is bounded.
 pub const MAX_DEPTH: u32 = 64;
 
+/// The most bits a split code may have (the file format's limit).
+pub const MAX_GRID_BITS: u32 = 16;
+
 /// How a node is cut.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Split {
@@ -208,8 +211,11 @@ impl VisTree {
         if self.nodes.is_empty() {
             return Err("the tree has no node".into());
         }
-        if !(1..=24).contains(&self.grid_bits) {
-            return Err(format!("grid bits {} outside 1..=24", self.grid_bits));
+        if !(1..=MAX_GRID_BITS).contains(&self.grid_bits) {
+            return Err(format!(
+                "grid bits {} outside 1..={MAX_GRID_BITS}",
+                self.grid_bits
+            ));
         }
         let end = self.check_subtree(0, self.root)?;
         if end != self.nodes.len() {

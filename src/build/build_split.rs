@@ -120,7 +120,7 @@ pub(super) fn best_split(ctx: &Ctx, cell: &Cell, cache: &[CachedRay]) -> Option<
             };
             let e_vol = 1.0 - (ma - mb).abs() / (ma + mb);
             let score = e_vis * e_vol;
-            if best.is_none_or(|b| score > b.score) {
+            if score.is_finite() && best.is_none_or(|b| score > b.score) {
                 best = Some(Candidate {
                     dim: d,
                     code,

@@ -151,7 +151,12 @@ pub fn write_file(file: &V5dFile) -> Vec<u8> {
     out.extend_from_slice(file.params.as_bytes());
     for o in &file.objects {
         out.extend_from_slice(&o.triangles.to_le_bytes());
-        let name = &o.name.as_bytes()[..o.name.len().min(u16::MAX as usize)];
+        // At most 65535 bytes, cut at a character boundary.
+        let mut end = o.name.len().min(u16::MAX as usize);
+        while !o.name.is_char_boundary(end) {
+            end -= 1;
+        }
+        let name = &o.name.as_bytes()[..end];
         out.extend_from_slice(&(name.len() as u16).to_le_bytes());
         out.extend_from_slice(name);
     }
@@ -360,6 +365,31 @@ mod tests {
     fn crc32_check_value() {
         assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
         assert_eq!(crc32(b""), 0);
+    }
+
+    #[test]
+    fn long_names_are_cut_at_a_character_boundary() {
+        let tree = VisTree::from_parts(
+            Cell::all_directions(crate::geom::Aabb::new(Vec3::ZERO, Vec3::ONE)),
+            4,
+            1,
+            vec![crate::tree::Node {
+                split: None,
+                set: crate::bitset::ObjectSet::full(1),
+            }],
+        );
+        let file = V5dFile {
+            coding: Coding::Leaves,
+            fingerprint: 1,
+            params: String::new(),
+            objects: vec![FileObject {
+                name: "é".repeat(40_000),
+                triangles: 1,
+            }],
+            tree,
+        };
+        let back = read_file(&write_file(&file), ReadLimits::default()).unwrap();
+        assert_eq!(back.objects[0].name, "é".repeat(32_767));
     }
 
     #[test]

@@ -41,7 +41,7 @@ use super::CodecError;
 use super::codec_bits::{BitReader, BitWriter};
 use crate::bitset::ObjectSet;
 use crate::geom::cell::{Cell, DIMS};
-use crate::tree::{MAX_DEPTH, Node, Split, VisTree};
+use crate::tree::{MAX_DEPTH, MAX_GRID_BITS, Node, Split, VisTree};
 
 /// How the sets of a tree are coded.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -229,6 +229,11 @@ pub fn decode(
         return Err(CodecError::Corrupt(
             "the tree's bit length exceeds its bytes".into(),
         ));
+    }
+    if !(1..=MAX_GRID_BITS).contains(&grid_bits) {
+        return Err(CodecError::Corrupt(format!(
+            "grid bits {grid_bits} outside 1..={MAX_GRID_BITS}"
+        )));
     }
     let mut d = Decoder {
         r: BitReader::new(bytes, bits),

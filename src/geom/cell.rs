@@ -38,7 +38,8 @@ pub const DIM_NAMES: [&str; DIMS] = ["x", "y", "z", "theta", "phi"];
 /// zero).
 pub fn direction_to_angles(d: Vec3) -> (f32, f32) {
     let theta = d.y.atan2(d.x);
-    let phi = (d.z / d.length()).clamp(-1.0, 1.0).acos();
+    // atan2, not acos(z / |d|): acos loses ~3.5e-4 rad next to the poles.
+    let phi = d.x.hypot(d.y).atan2(d.z);
     (theta, phi)
 }
 
@@ -200,7 +201,8 @@ impl Cell {
 /// by the corners of M's xy rectangle (which subtends less than pi when it
 /// misses the origin), and `cos phi = z / |v|` is monotone in z and in the
 /// xy distance, which vary independently over M, so its extremes are
-/// exact. Intervals are widened by 1e-4 rad against rounding.
+/// exact. Intervals are widened by 1e-4 rad against rounding; phi is
+/// computed as `atan2(rho, z)`, accurate next to the poles.
 pub fn direction_bounds(from: &Aabb, to: &Aabb) -> Option<(f32, f32, f32, f32)> {
     const PAD: f32 = 1e-4;
     let lo = to.min - from.max;
@@ -219,22 +221,19 @@ pub fn direction_bounds(from: &Aabb, to: &Aabb) -> Option<(f32, f32, f32, f32)> 
     };
     let rho_min = nearest(lo.x, hi.x).hypot(nearest(lo.y, hi.y));
     let rho_max = lo.x.abs().max(hi.x.abs()).hypot(lo.y.abs().max(hi.y.abs()));
-    let cos_at = |z: f32, rho: f32| {
-        let n = z.hypot(rho);
-        if n == 0.0 { 0.0 } else { z / n }
-    };
-    let cos_max = if hi.z >= 0.0 {
-        cos_at(hi.z, rho_min)
+    // phi = atan2(rho, z) (exact next to the poles, unlike acos).
+    let phi_min = if hi.z >= 0.0 {
+        rho_min.atan2(hi.z)
     } else {
-        cos_at(hi.z, rho_max)
+        rho_max.atan2(hi.z)
     };
-    let cos_min = if lo.z <= 0.0 {
-        cos_at(lo.z, rho_min)
+    let phi_max = if lo.z <= 0.0 {
+        rho_min.atan2(lo.z)
     } else {
-        cos_at(lo.z, rho_max)
+        rho_max.atan2(lo.z)
     };
-    let phi_lo = (cos_max.clamp(-1.0, 1.0).acos() - PAD).max(0.0);
-    let phi_hi = (cos_min.clamp(-1.0, 1.0).acos() + PAD).min(PI);
+    let phi_lo = (phi_min - PAD).max(0.0);
+    let phi_hi = (phi_max + PAD).min(PI);
     if contains_zero(lo.x, hi.x) && contains_zero(lo.y, hi.y) {
         return Some((-PI, PI, phi_lo, phi_hi));
     }
@@ -412,6 +411,30 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn direction_bounds_near_the_poles() {
+        // A box just off the +z axis: phi about 3.4e-4 must be inside
+        // (acos(z / |v|) lost it in f32).
+        let from = Aabb::new(Vec3::ZERO, Vec3::ZERO);
+        let to = Aabb::new(
+            Vec3::new(1.2e-4, 1.2e-4, 1.0),
+            Vec3::new(2.4e-4, 2.4e-4, 2.0),
+        );
+        let (_, _, p0, p1) = direction_bounds(&from, &to).unwrap();
+        let corner = direction_to_angles(Vec3::new(2.4e-4, 2.4e-4, 1.0)).1;
+        assert!(
+            corner > 3e-4 && p0 <= corner && corner <= p1,
+            "{p0} {p1} {corner}"
+        );
+        let to = Aabb::new(
+            Vec3::new(1.2e-4, 1.2e-4, -2.0),
+            Vec3::new(2.4e-4, 2.4e-4, -1.0),
+        );
+        let (_, _, p0, p1) = direction_bounds(&from, &to).unwrap();
+        let corner = direction_to_angles(Vec3::new(2.4e-4, 2.4e-4, -1.0)).1;
+        assert!(p0 <= corner && corner <= p1, "{p0} {p1} {corner}");
     }
 
     #[test]

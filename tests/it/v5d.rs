@@ -183,7 +183,7 @@ fn a_view_query_holds_every_pixel_rays_leaf_set() {
 }
 
 #[test]
-fn positions_outside_the_view_box_cull_nothing() {
+fn odd_ranges_are_answered_safely() {
     let pvs = Pvs::from_bytes(&file_bytes(None)).unwrap();
     let mut out = pvs.new_set();
     pvs.query_view(
@@ -191,6 +191,22 @@ fn positions_outside_the_view_box_cull_nothing() {
         &mut out,
     );
     assert_eq!(out.count(), pvs.object_count());
+    // A NaN anywhere: everything; an empty range: nothing.
+    let b = pvs.root_cell().space();
+    let c = Aabb::new(b.center(), b.center());
+    pvs.query_range(&c, (0.0, 1.0), (f32::NAN, 1.0), &mut out);
+    assert_eq!(out.count(), pvs.object_count());
+    pvs.query_range(&c, (0.0, 1.0), (2.0, 1.0), &mut out);
+    assert_eq!(out.count(), 0);
+    let inverted = Aabb::new(b.center() + Vec3::X * 0.1, b.center());
+    pvs.query_range(&inverted, (0.0, 1.0), (0.0, 1.0), &mut out);
+    assert_eq!(out.count(), 0);
+    // Angles beyond the root are clipped: the same as the full range.
+    let mut full = pvs.new_set();
+    let pi = std::f32::consts::PI;
+    pvs.query_range(&c, (-4.0, 4.0), (-1.0, 4.0), &mut out);
+    pvs.query_range(&c, (-pi, pi), (0.0, pi), &mut full);
+    assert_eq!(out, full);
 }
 
 #[test]
