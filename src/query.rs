@@ -167,7 +167,6 @@ pub fn frustum_angles(dir: Vec3, up: Vec3, fov_x: f32, fov_y: f32) -> AngularRan
     }
     let r = (r0 - f * r0.dot(f)).normalize();
     let u = r.cross(f);
-    let phi = |v: DVec3| v.x.hypot(v.y).atan2(v.z);
     let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
         .map(|(sx, sy)| (f + r * (sx * tx) + u * (sy * ty)).normalize());
     // A pole inside, or on the boundary to within the padding.
@@ -178,13 +177,12 @@ pub fn frustum_angles(dir: Vec3, up: Vec3, fov_x: f32, fov_y: f32) -> AngularRan
             && v.dot(u).abs() <= (ty + PAD * (1.0 + ty * ty)) * z
     };
     let (north, south) = (inside(DVec3::Z), inside(-DVec3::Z));
-    let mut phi0 = corners
+    // The z range of the unit directions (phi = acos z is monotone; acos is
+    // accurate to ~1e-8 rad in f64 even next to the poles).
+    let mut zmin = corners.iter().map(|c| c.z).fold(f64::INFINITY, f64::min);
+    let mut zmax = corners
         .iter()
-        .map(|&c| phi(c))
-        .fold(f64::INFINITY, f64::min);
-    let mut phi1 = corners
-        .iter()
-        .map(|&c| phi(c))
+        .map(|c| c.z)
         .fold(f64::NEG_INFINITY, f64::max);
     // The edges' great circles, their planes from the frame (not from the
     // corners, which lose precision for wide views): x = +-tx (vertical
@@ -205,28 +203,31 @@ pub fn frustum_angles(dir: Vec3, up: Vec3, fov_x: f32, fov_y: f32) -> AngularRan
             for p in [m, -m] {
                 let z = p.dot(f);
                 if z > 0.0 && p.dot(along).abs() <= half * z {
-                    phi0 = phi0.min(phi(p));
-                    phi1 = phi1.max(phi(p));
+                    zmin = zmin.min(p.z);
+                    zmax = zmax.max(p.z);
                 }
             }
         }
     }
     if north {
-        phi0 = 0.0;
+        zmax = 1.0;
     }
     if south {
-        phi1 = std::f64::consts::PI;
+        zmin = -1.0;
     }
-    let (p0, p1) = (phi0 - PAD, phi1 + PAD);
+    let (p0, p1) = (
+        zmax.clamp(-1.0, 1.0).acos() - PAD,
+        zmin.clamp(-1.0, 1.0).acos() + PAD,
+    );
     if north || south || p0 < POLE_GUARD || p1 > std::f64::consts::PI - POLE_GUARD {
         return AngularRanges::one((-PI, PI, (p0.max(0.0)) as f32, (p1 as f32).min(PI)));
     }
     // Theta: unwrap along the edges.
-    let theta = |v: DVec3| v.y.atan2(v.x);
-    let mut t = theta(corners[0]);
+    let th = corners.map(|v| v.y.atan2(v.x));
+    let mut t = th[0];
     let (mut tmin, mut tmax) = (t, t);
     for k in 1..4 {
-        t += wrap(theta(corners[k]) - theta(corners[k - 1]));
+        t += wrap(th[k] - th[k - 1]);
         tmin = tmin.min(t);
         tmax = tmax.max(t);
     }
