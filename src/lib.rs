@@ -68,7 +68,7 @@
 //!
 //! Builder side (feature `builder`): [`scene`] (OBJ/glTF loading,
 //! procedural scenes), [`trace`] (the BVH tracer), [`sample`], [`sprt`],
-//! [`build`].
+//! [`build`], [`oracle`] (the conservative extended-projection oracle).
 //!
 //! ## Features
 //!
@@ -86,6 +86,8 @@ pub mod bitset;
 pub mod build;
 pub mod codec;
 pub mod geom;
+#[cfg(feature = "builder")]
+pub mod oracle;
 pub mod query;
 #[cfg(feature = "builder")]
 pub mod sample;

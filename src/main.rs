@@ -22,6 +22,8 @@ use vis5d::sprt::SprtParams;
 use vis5d::trace::Tracer;
 use vis5d::tree::{TreeSummary, VisTree};
 
+mod cli_oracle;
+
 /// Precomputed from-region visibility for static 3D scenes.
 ///
 /// vis5d finds which objects of a scene can be seen from which regions of
@@ -69,6 +71,17 @@ enum Command {
     /// [x,y,z], "fov": degrees} (square field of view, up = +z unless the
     /// direction is vertical).
     Query(QueryArgs),
+    /// Run the conservative extended-projection oracle (papers/001) for one
+    /// view cell.
+    ///
+    /// Prints the objects it cannot prove hidden from any point of the
+    /// cell (a box of viewpoints, all directions): a superset of the
+    /// visible ones. Six projection planes around the cell collect the
+    /// occlusion of convex occluders (whole convex objects, merged
+    /// coplanar polygons, triangles) into Depth Maps; object boxes are
+    /// tested against them. Prints the planes, the timings and the
+    /// objects.
+    Oracle(cli_oracle::OracleArgs),
     /// Generate a procedural test scene and write it as OBJ.
     ///
     /// Kinds: apartment (two furnished rooms joined by a door, ~170 objects,
@@ -296,6 +309,7 @@ fn main() -> ExitCode {
         Command::Build(args) => build(&args),
         Command::Stat(args) => stat(&args),
         Command::Query(args) => query(&args),
+        Command::Oracle(args) => cli_oracle::oracle(&args),
         Command::Scene(args) => generate_scene(&args),
     };
     match result {

@@ -8,6 +8,7 @@ mod build;
 mod cli;
 mod gltf_load;
 mod obj_load;
+mod oracle;
 mod procedural;
 mod real_scenes;
 mod sprt;

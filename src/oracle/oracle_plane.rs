@@ -1,0 +1,352 @@
+//! A projection plane's Depth Map (papers/001 sec. 2.3-2.4): a pixel grid
+//! over a finite rectangle of the plane, each pixel holding the smallest
+//! Depth of the occluders whose Projection covers it *entirely*, and a max
+//! pyramid over it (the Hierarchical Depth Map) to test occludee
+//! rectangles.
+//!
+//! Conservative rasterisation both ways: an occluder counts only in pixels
+//! its Projection covers fully (all four corners inside the convex polygon,
+//! with a margin against rounding); an occludee counts in every pixel its
+//! rectangle touches (with a margin).
+//!
+//! Coordinates here are the plane's own 2D (u, v); `polygon` helpers work
+//! on convex polygons in counter-clockwise order.
+
+use glam::DVec2;
+
+/// Relative margin against rounding, in pixels.
+const MARGIN: f64 = 1e-6;
+
+/// The signed area of a polygon (positive when counter-clockwise).
+pub fn signed_area(p: &[DVec2]) -> f64 {
+    let mut a = 0.0;
+    for i in 0..p.len() {
+        let (q, r) = (p[i], p[(i + 1) % p.len()]);
+        a += q.x * r.y - r.x * q.y;
+    }
+    0.5 * a
+}
+
+/// Makes `p` counter-clockwise.
+pub fn make_ccw(p: &mut [DVec2]) {
+    if signed_area(p) < 0.0 {
+        p.reverse();
+    }
+}
+
+/// The convex hull of points, counter-clockwise (Andrew's monotone chain);
+/// collinear points dropped.
+pub fn convex_hull(points: &mut Vec<DVec2>) -> Vec<DVec2> {
+    points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    points.dedup();
+    if points.len() < 3 {
+        return Vec::new();
+    }
+    let cross = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
+    let mut hull: Vec<DVec2> = Vec::with_capacity(points.len() * 2);
+    for &p in points.iter() {
+        while hull.len() >= 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
+            hull.pop();
+        }
+        hull.push(p);
+    }
+    let lower = hull.len() + 1;
+    for &p in points.iter().rev().skip(1) {
+        while hull.len() >= lower && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
+            hull.pop();
+        }
+        hull.push(p);
+    }
+    hull.pop();
+    hull
+}
+
+/// Clips the convex polygon `subject` to the convex polygon `clip` (both
+/// counter-clockwise): their intersection, empty when they do not overlap.
+pub fn clip_convex(subject: &[DVec2], clip: &[DVec2]) -> Vec<DVec2> {
+    let mut out: Vec<DVec2> = subject.to_vec();
+    let mut input = Vec::new();
+    for i in 0..clip.len() {
+        if out.is_empty() {
+            break;
+        }
+        let (a, b) = (clip[i], clip[(i + 1) % clip.len()]);
+        let side = |p: DVec2| (b - a).perp_dot(p - a);
+        std::mem::swap(&mut input, &mut out);
+        out.clear();
+        for k in 0..input.len() {
+            let (p, q) = (input[k], input[(k + 1) % input.len()]);
+            let (sp, sq) = (side(p), side(q));
+            if sp >= 0.0 {
+                out.push(p);
+            }
+            if (sp >= 0.0) != (sq >= 0.0) {
+                let t = sp / (sp - sq);
+                out.push(p + (q - p) * t);
+            }
+        }
+    }
+    if out.len() < 3 || signed_area(&out) <= 0.0 {
+        out.clear();
+    }
+    out
+}
+
+/// The x range where the horizontal line at `y` meets a convex polygon.
+fn span_at(poly: &[DVec2], y: f64) -> Option<(f64, f64)> {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for i in 0..poly.len() {
+        let (p, q) = (poly[i], poly[(i + 1) % poly.len()]);
+        if p.y == y {
+            lo = lo.min(p.x);
+            hi = hi.max(p.x);
+        }
+        if (p.y - y) * (q.y - y) < 0.0 {
+            let x = p.x + (y - p.y) * (q.x - p.x) / (q.y - p.y);
+            lo = lo.min(x);
+            hi = hi.max(x);
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
+}
+
+/// One occluder ready for rasterisation: its views from the cell's
+/// corners, convex counter-clockwise polygons in the map's pixel
+/// coordinates (pixel `(i, j)` covers `[i, i + 1] x [j, j + 1]`), and its
+/// Depth. Its Projection is the intersection of the views.
+#[derive(Clone, Debug)]
+pub struct ProjectedOccluder {
+    /// The views, one per cell corner.
+    pub views: Vec<Vec<DVec2>>,
+    /// The occluder's maximum depth.
+    pub depth: f64,
+}
+
+/// The CPU rasteriser: the `n` x `n` level-0 map (row `j` at `j * n..`)
+/// holding in each pixel the smallest Depth among the occluders whose
+/// Projection (intersection of views, computed exactly by clipping)
+/// covers the pixel entirely; +inf elsewhere. The reference for the GPU.
+pub fn cpu_rasterise(n: usize, occluders: &[ProjectedOccluder]) -> Vec<f64> {
+    let mut map = vec![f64::INFINITY; n * n];
+    for o in occluders {
+        let poly = super::oracle_project::intersect_views(&o.views);
+        draw_pixels(&mut map, n, &poly, o.depth);
+    }
+    map
+}
+
+/// Writes `depth` into the pixels of the `n` x `n` `map` that the convex
+/// counter-clockwise polygon `poly` (pixel coordinates) covers entirely,
+/// where it is smaller; returns how many pixels it covers.
+fn draw_pixels(map: &mut [f64], n: usize, poly: &[DVec2], depth: f64) -> usize {
+    if poly.len() < 3 {
+        return 0;
+    }
+    let (lo, hi) = poly
+        .iter()
+        .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(a, b), &p| {
+            (a.min(p), b.max(p))
+        });
+    let j0 = (lo.y + MARGIN).ceil().max(0.0) as usize;
+    let j1 = (hi.y - MARGIN).floor().min(n as f64).max(0.0) as usize;
+    let mut covered = 0;
+    for j in j0..j1 {
+        let (y0, y1) = (j as f64, (j + 1) as f64);
+        let (Some((a0, b0)), Some((a1, b1))) = (span_at(poly, y0), span_at(poly, y1)) else {
+            continue;
+        };
+        let (a, b) = (a0.max(a1), b0.min(b1));
+        let i0 = (a + MARGIN).ceil().max(0.0) as usize;
+        let i1 = (b - MARGIN).floor().min(n as f64);
+        if i1 < 0.0 {
+            continue;
+        }
+        let row = &mut map[j * n..(j + 1) * n];
+        for d in row.iter_mut().take(i1 as usize).skip(i0) {
+            *d = d.min(depth);
+            covered += 1;
+        }
+    }
+    covered
+}
+
+/// A Depth Map over the rectangle `[min, max]` of a plane, `n` x `n`
+/// pixels (`n` a power of two), with its max pyramid.
+#[derive(Clone, Debug)]
+pub struct DepthMap {
+    min: DVec2,
+    max: DVec2,
+    n: usize,
+    /// Pyramid levels; level 0 is the full map, each level's texel the max
+    /// of its 2x2 children; the last is 1 x 1. Empty pixels are +inf.
+    levels: Vec<Vec<f64>>,
+}
+
+impl DepthMap {
+    /// An empty map (every pixel +inf: nothing occludes).
+    pub fn new(min: DVec2, max: DVec2, n: usize) -> Self {
+        debug_assert!(n.is_power_of_two());
+        Self {
+            min,
+            max,
+            n,
+            levels: vec![vec![f64::INFINITY; n * n]],
+        }
+    }
+
+    /// The plane rectangle.
+    pub fn rect(&self) -> (DVec2, DVec2) {
+        (self.min, self.max)
+    }
+
+    fn pixel(&self) -> DVec2 {
+        (self.max - self.min) / self.n as f64
+    }
+
+    /// A plane point in pixel coordinates (pixel `(i, j)` covers
+    /// `[i, i + 1] x [j, j + 1]`).
+    pub fn to_pixels(&self, p: DVec2) -> DVec2 {
+        (p - self.min) / self.pixel()
+    }
+
+    /// A map from its level-0 pixels (row `j` at `j * n..`; +inf where no
+    /// occluder), as the GPU rasteriser returns them.
+    pub fn from_level0(min: DVec2, max: DVec2, n: usize, level0: Vec<f64>) -> Self {
+        assert_eq!(level0.len(), n * n, "a depth map of {n} x {n} pixels");
+        Self {
+            min,
+            max,
+            n,
+            levels: vec![level0],
+        }
+    }
+
+    /// Writes `depth` into the pixels the convex counter-clockwise `poly`
+    /// (in plane coordinates) covers entirely, where it is smaller than
+    /// what is there; returns how many pixels it covers.
+    pub fn draw_occluder(&mut self, poly: &[DVec2], depth: f64) -> usize {
+        let px: Vec<DVec2> = poly.iter().map(|&p| self.to_pixels(p)).collect();
+        draw_pixels(&mut self.levels[0], self.n, &px, depth)
+    }
+
+    /// Pixels holding some occluder.
+    pub fn filled(&self) -> usize {
+        self.levels[0].iter().filter(|d| d.is_finite()).count()
+    }
+
+    /// Builds the max pyramid; call after the last occluder.
+    pub fn build_pyramid(&mut self) {
+        self.levels.truncate(1);
+        let mut n = self.n;
+        while n > 1 {
+            let prev = self.levels.last().expect("level 0 exists");
+            let m = n / 2;
+            let mut next = vec![0.0; m * m];
+            for j in 0..m {
+                for i in 0..m {
+                    let at = |x: usize, y: usize| prev[y * n + x];
+                    next[j * m + i] = at(2 * i, 2 * j)
+                        .max(at(2 * i + 1, 2 * j))
+                        .max(at(2 * i, 2 * j + 1))
+                        .max(at(2 * i + 1, 2 * j + 1));
+                }
+            }
+            self.levels.push(next);
+            n = m;
+        }
+    }
+
+    /// Whether every pixel that the rectangle `[lo, hi]` touches holds a
+    /// depth below `depth` (false when the rectangle leaves the map). Uses
+    /// the pyramid from the top.
+    pub fn hides(&self, lo: DVec2, hi: DVec2, depth: f64) -> bool {
+        if lo.x < self.min.x || lo.y < self.min.y || hi.x > self.max.x || hi.y > self.max.y {
+            return false;
+        }
+        let px = self.pixel();
+        let to_pixel = |v: f64, min: f64, size: f64| ((v - min) / size).floor() as i64;
+        let i0 = to_pixel(lo.x, self.min.x, px.x) - 1;
+        let i1 = to_pixel(hi.x, self.min.x, px.x) + 1;
+        let j0 = to_pixel(lo.y, self.min.y, px.y) - 1;
+        let j1 = to_pixel(hi.y, self.min.y, px.y) + 1;
+        // One pixel more on every side: touched pixels, with room for
+        // rounding. Outside the map (the rectangle fits, the margin does
+        // not) clamp: those pixels are within the rectangle's touch anyway.
+        let n = self.n as i64;
+        let (i0, i1, j0, j1) = (i0.max(0), i1.min(n - 1), j0.max(0), j1.min(n - 1));
+        self.below(self.levels.len() - 1, 0, 0, [i0, i1, j0, j1], depth)
+    }
+
+    fn below(&self, level: usize, i: i64, j: i64, r: [i64; 4], depth: f64) -> bool {
+        let span = 1i64 << level;
+        let (x0, y0) = (i * span, j * span);
+        if x0 > r[1] || x0 + span - 1 < r[0] || y0 > r[3] || y0 + span - 1 < r[2] {
+            return true;
+        }
+        let size = (self.n >> level) as i64;
+        if self.levels[level][(j * size + i) as usize] < depth {
+            return true;
+        }
+        if level == 0 {
+            return false;
+        }
+        (0..2).all(|dj| (0..2).all(|di| self.below(level - 1, 2 * i + di, 2 * j + dj, r, depth)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sq(a: f64, b: f64) -> Vec<DVec2> {
+        vec![
+            DVec2::new(a, a),
+            DVec2::new(b, a),
+            DVec2::new(b, b),
+            DVec2::new(a, b),
+        ]
+    }
+
+    #[test]
+    fn hull_and_clip() {
+        let mut pts = vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(1.0, 0.0),
+            DVec2::new(0.5, 0.5),
+            DVec2::new(1.0, 1.0),
+            DVec2::new(0.0, 1.0),
+        ];
+        let h = convex_hull(&mut pts);
+        assert_eq!(h.len(), 4);
+        assert!((signed_area(&h) - 1.0).abs() < 1e-12);
+        let c = clip_convex(&sq(0.0, 2.0), &sq(1.0, 3.0));
+        assert!((signed_area(&c) - 1.0).abs() < 1e-12);
+        assert!(clip_convex(&sq(0.0, 1.0), &sq(2.0, 3.0)).is_empty());
+    }
+
+    #[test]
+    fn occluders_cover_only_whole_pixels_and_occludees_every_touched_one() {
+        let mut m = DepthMap::new(DVec2::ZERO, DVec2::splat(8.0), 8);
+        // A square from 1.5 to 5.5 covers pixels 2..5 fully (3 x 3).
+        assert_eq!(m.draw_occluder(&sq(1.5, 5.5), 1.0), 9);
+        // Exactly on pixel edges, the edge pixels are dropped (a margin
+        // against rounding); just beyond them they count.
+        let mut edge = DepthMap::new(DVec2::ZERO, DVec2::splat(8.0), 8);
+        assert_eq!(edge.draw_occluder(&sq(2.0, 6.0), 1.0), 4);
+        let mut m2 = DepthMap::new(DVec2::ZERO, DVec2::splat(8.0), 8);
+        assert_eq!(m2.draw_occluder(&sq(1.999, 6.001), 1.0), 16);
+        m.build_pyramid();
+        m2.build_pyramid();
+        // An occludee inside the fully covered pixels, behind: hidden.
+        assert!(m.hides(DVec2::splat(3.2), DVec2::splat(3.8), 2.0));
+        // In front of the occluder: not hidden.
+        assert!(!m.hides(DVec2::splat(3.2), DVec2::splat(3.8), 0.5));
+        // Touching a partly covered pixel: not hidden.
+        assert!(!m.hides(DVec2::splat(3.0), DVec2::splat(5.2), 2.0));
+        // Occludee rectangles are grown by a pixel: inside with room.
+        assert!(m2.hides(DVec2::splat(3.5), DVec2::splat(4.5), 2.0));
+        assert!(!m2.hides(DVec2::splat(2.5), DVec2::splat(4.5), 2.0));
+        // Leaving the map: never hidden.
+        assert!(!m.hides(DVec2::splat(-0.5), DVec2::splat(3.0), 2.0));
+    }
+}
