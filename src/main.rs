@@ -82,6 +82,18 @@ enum Command {
     /// tested against them. Prints the planes, the timings and the
     /// objects.
     Oracle(cli_oracle::OracleArgs),
+    /// Cross-check a built tree against the oracle.
+    ///
+    /// For the leaves' spatial cells (all, or `--sample N` of them) runs the
+    /// oracle, restricts its set to each leaf's directions, and reports:
+    /// violations (objects a ray of the leaf hits that the oracle calls
+    /// hidden: must be none, else the command fails and names them);
+    /// suspects (objects the oracle keeps and the leaf lacks), each
+    /// resolved by a burst of aimed rays into a confirmed miss of the
+    /// sampler (with the visible fraction found) or not found; and the
+    /// mean sizes of the oracle's, the sampled and the ground-truth sets.
+    /// `--json` gives every leaf's detail.
+    Check(cli_oracle::CheckArgs),
     /// Generate a procedural test scene and write it as OBJ.
     ///
     /// Kinds: apartment (two furnished rooms joined by a door, ~170 objects,
@@ -310,6 +322,7 @@ fn main() -> ExitCode {
         Command::Stat(args) => stat(&args),
         Command::Query(args) => query(&args),
         Command::Oracle(args) => cli_oracle::oracle(&args),
+        Command::Check(args) => cli_oracle::check(&args),
         Command::Scene(args) => generate_scene(&args),
     };
     match result {

@@ -38,6 +38,7 @@
 //! Why each step is conservative is argued where it is done; the property
 //! test in `tests/it/oracle.rs` checks it with rays.
 
+pub mod oracle_check;
 pub mod oracle_occluders;
 pub mod oracle_plane;
 pub mod oracle_project;

@@ -129,3 +129,150 @@ fn never_wrong_on_forest() {
 fn never_wrong_on_machine() {
     check_scene("machine.obj", 100_000);
 }
+
+fn vis5d(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_vis5d"))
+        .args(args)
+        .current_dir(crate::root())
+        .output()
+        .unwrap()
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+#[test]
+fn oracle_command_reports_and_refuses_bad_input() {
+    let out = vis5d(&[
+        "oracle",
+        "scenes/apartment.obj",
+        "--cell",
+        "2,2,1,2.5,2.5,1.5",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let visible = j["potentially_visible"].as_array().unwrap().len();
+    assert_eq!(visible + j["hidden"].as_u64().unwrap() as usize, 174);
+    assert!(j["hidden"].as_u64().unwrap() > 10, "{j}");
+    assert!(!j["planes"].as_array().unwrap().is_empty());
+    let out = vis5d(&[
+        "oracle",
+        "scenes/apartment.obj",
+        "--cell",
+        "2,2,1,2.5,2.5,1.5",
+    ]);
+    assert!(
+        text(&out.stdout).contains("potentially visible"),
+        "{}",
+        text(&out.stdout)
+    );
+    for (args, message) in [
+        (
+            vec!["oracle", "scenes/apartment.obj", "--cell", "1,2,3"],
+            "expected 6 numbers",
+        ),
+        (
+            vec!["oracle", "scenes/apartment.obj", "--cell", "2,2,2,1,1,1"],
+            "x0 < x1",
+        ),
+        (
+            vec![
+                "oracle",
+                "scenes/apartment.obj",
+                "--cell",
+                "0,0,0,1,1,1",
+                "--resolution",
+                "100",
+            ],
+            "power of two",
+        ),
+        (
+            vec!["oracle", "nope.obj", "--cell", "0,0,0,1,1,1"],
+            "nope.obj",
+        ),
+    ] {
+        let out = vis5d(&args);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(
+            text(&out.stderr).contains(message),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+    }
+}
+
+#[test]
+fn check_finds_no_violations_and_catches_a_lying_oracle() {
+    let dir = tempfile::tempdir().unwrap();
+    let v5d = dir.path().join("machine.v5d");
+    let out = vis5d(&[
+        "build",
+        "scenes/machine.obj",
+        "--max-depth",
+        "6",
+        "-o",
+        v5d.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let out = vis5d(&[
+        "check",
+        "scenes/machine.obj",
+        v5d.to_str().unwrap(),
+        "--sample",
+        "12",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["violations"], 0, "{j}");
+    assert_eq!(j["leaves_checked"], 12);
+    assert_eq!(j["leaves"].as_array().unwrap().len(), 12);
+    for l in j["leaves"].as_array().unwrap() {
+        // The oracle's set holds the ground truth's (no violation).
+        assert!(l["oracle"].as_u64() >= l["truth"].as_u64(), "{l}");
+    }
+    // Another scene's tree is refused.
+    let out = vis5d(&["check", "scenes/apartment.obj", v5d.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(
+        text(&out.stderr).contains("another scene"),
+        "{}",
+        text(&out.stderr)
+    );
+
+    // An oracle that hides everything is caught, with witnesses.
+    let scene = scene::load(committed("machine.obj")).unwrap();
+    let bytes = std::fs::read(&v5d).unwrap();
+    let file = vis5d::codec::read_file(&bytes, vis5d::codec::ReadLimits::default()).unwrap();
+    let tracer = Tracer::new(&scene);
+    let oracle = Oracle::new(&scene, OracleParams::default()).unwrap();
+    let params = vis5d::oracle::oracle_check::CheckParams {
+        sample: Some(5),
+        burst: 200,
+        truth_rays: 512,
+        seed: 3,
+    };
+    let objects = scene.objects().len();
+    let mut lying =
+        |_: &Aabb, _: Option<&vis5d::bitset::ObjectSet>| vis5d::bitset::ObjectSet::new(objects);
+    let report = vis5d::oracle::oracle_check::check(
+        &oracle,
+        &tracer,
+        &file.tree,
+        &params,
+        &mut lying,
+        &|_, _, _| {},
+    );
+    assert_eq!(report.leaves.len(), 5);
+    let violations: Vec<_> = report.violations().collect();
+    assert!(!violations.is_empty());
+    for (leaf, v) in violations {
+        // Each witness is a real ray of the leaf that hits the object first.
+        let hit = tracer.closest_hit(&v.ray).expect("a witness hits");
+        assert_eq!(hit.object, v.object);
+        let o = v.ray.origin;
+        assert!((0..3).all(|k| o[k] >= leaf.cell.lo[k] && o[k] <= leaf.cell.hi[k]));
+    }
+}
