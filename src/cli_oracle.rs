@@ -10,6 +10,8 @@ use serde::Serialize;
 use vis5d::bitset::ObjectSet;
 use vis5d::geom::Aabb;
 use vis5d::oracle::oracle_check::{self, CheckParams};
+use vis5d::oracle::oracle_gpu::GpuRasteriser;
+use vis5d::oracle::oracle_plane::cpu_rasterise;
 use vis5d::oracle::{CellReport, Oracle, OracleParams};
 use vis5d::trace::Tracer;
 
@@ -29,6 +31,69 @@ pub struct OracleFlags {
     /// The most occluders drawn into one Depth Map (the largest first).
     #[arg(long, default_value_t = 4096)]
     pub max_occluders: usize,
+    /// Projection planes per face of the cell: the best position, then
+    /// those that hide most objects the others do not.
+    #[arg(long, default_value_t = 2)]
+    pub planes_per_face: usize,
+    /// Rasterise the Depth Maps on the CPU even when a GPU adapter exists
+    /// (the default uses the GPU through wgpu, and the CPU when there is
+    /// none).
+    #[arg(long)]
+    pub cpu: bool,
+}
+
+/// Where Depth Maps are rasterised.
+pub enum Backend {
+    /// The CPU reference.
+    Cpu,
+    /// wgpu, with the CPU as a fallback should a map fail.
+    Gpu(Box<GpuRasteriser>, std::sync::atomic::AtomicBool),
+}
+
+impl Backend {
+    /// The GPU unless `cpu` is set or no adapter exists (then says so on
+    /// stderr).
+    pub fn open(cpu: bool) -> Backend {
+        if cpu {
+            return Backend::Cpu;
+        }
+        match GpuRasteriser::new() {
+            Ok(g) => Backend::Gpu(Box::new(g), std::sync::atomic::AtomicBool::new(false)),
+            Err(e) => {
+                eprintln!("note: {e}; using the CPU rasteriser");
+                Backend::Cpu
+            }
+        }
+    }
+
+    /// "CPU" or the adapter's name.
+    pub fn name(&self) -> String {
+        match self {
+            Backend::Cpu => "CPU".into(),
+            Backend::Gpu(g, _) => format!("GPU: {}", g.adapter_name()),
+        }
+    }
+
+    /// The oracle for one cell on this backend.
+    pub fn cell(
+        &self,
+        oracle: &Oracle,
+        cell: &Aabb,
+        parent_hidden: Option<&ObjectSet>,
+    ) -> CellReport {
+        match self {
+            Backend::Cpu => oracle.cell(cell, parent_hidden),
+            Backend::Gpu(g, warned) => oracle.cell_with(cell, parent_hidden, &mut |n, occ| match g.rasterise(n, occ) {
+                Ok(map) => map,
+                Err(e) => {
+                    if !warned.swap(true, std::sync::atomic::Ordering::Relaxed) {
+                        eprintln!("warning: the GPU failed ({e}); this map and any other that fails use the CPU");
+                    }
+                    cpu_rasterise(n, occ)
+                }
+            }),
+        }
+    }
 }
 
 impl OracleFlags {
@@ -38,6 +103,7 @@ impl OracleFlags {
             resolution: self.resolution,
             extension: self.extension,
             max_occluders: self.max_occluders,
+            planes_per_face: self.planes_per_face,
             ..OracleParams::default()
         };
         p.validate().map_err(|e| anyhow!("{e}"))?;
@@ -64,6 +130,7 @@ struct PlaneJson {
     face: &'static str,
     position: f64,
     occluders: usize,
+    slices: usize,
     filled_pixels: usize,
     hidden: usize,
 }
@@ -78,6 +145,7 @@ struct OracleJson<'a> {
     hidden: usize,
     touching_cell: usize,
     resolution: usize,
+    backend: String,
     planes: Vec<PlaneJson>,
     seconds: Seconds,
 }
@@ -98,7 +166,8 @@ pub fn oracle(args: &OracleArgs) -> Result<()> {
     let start = Instant::now();
     let oracle = Oracle::new(&scene, params).map_err(|e| anyhow!("{e}"))?;
     let prepare = start.elapsed().as_secs_f64();
-    let report: CellReport = oracle.cell(&args.cell, None);
+    let backend = Backend::open(args.flags.cpu);
+    let report: CellReport = backend.cell(&oracle, &args.cell, None);
     let names: Vec<&str> = report
         .visible
         .iter()
@@ -114,6 +183,7 @@ pub fn oracle(args: &OracleArgs) -> Result<()> {
         potentially_visible: names,
         touching_cell: report.touching,
         resolution: oracle.params().resolution,
+        backend: backend.name(),
         planes: report
             .planes
             .iter()
@@ -121,6 +191,7 @@ pub fn oracle(args: &OracleArgs) -> Result<()> {
                 face: p.face,
                 position: p.position,
                 occluders: p.occluders,
+                slices: p.slices,
                 filled_pixels: p.filled,
                 hidden: p.hidden,
             })
@@ -143,18 +214,25 @@ pub fn oracle(args: &OracleArgs) -> Result<()> {
     let c = oracle.occluder_counts();
     writeln!(
         out,
-        "{}: {} objects, {} occluders ({} convex solids, {} polygons, {} triangles)",
-        json.scene, json.objects, json.occluders, c.solids, c.polygons, c.triangles
+        "{}: {} objects, {} occluders ({} convex solids, {} polygons, {} triangles), {} objects to slice",
+        json.scene,
+        json.objects,
+        json.occluders,
+        c.solids,
+        c.polygons,
+        c.triangles,
+        oracle.solid_count()
     )?;
     writeln!(out, "cell {:?} .. {:?}", json.cell[0], json.cell[1])?;
     let pixels = (json.resolution * json.resolution) as f64;
     for p in &json.planes {
         writeln!(
             out,
-            "  plane {} at {:.4}: {} occluders, {:.1}% of {}x{} pixels filled, {} objects hidden",
+            "  plane {} at {:.4}: {} occluders, {} solids cut, {:.1}% of {}x{} pixels filled, {} objects hidden",
             p.face,
             p.position,
             p.occluders,
+            p.slices,
             100.0 * p.filled_pixels as f64 / pixels,
             json.resolution,
             json.resolution,
@@ -172,8 +250,8 @@ pub fn oracle(args: &OracleArgs) -> Result<()> {
     let s = &json.seconds;
     writeln!(
         out,
-        "time: load {:.3} s, prepare {:.3} s, cell {:.3} s (select {:.3}, rasterise {:.3}, test {:.3}) on the CPU",
-        s.load, s.prepare, s.cell, s.select, s.rasterise, s.test
+        "time: load {:.3} s, prepare {:.3} s, cell {:.3} s (select {:.3}, rasterise {:.3}, test {:.3}); depth maps on the {}",
+        s.load, s.prepare, s.cell, s.select, s.rasterise, s.test, json.backend
     )?;
     for n in &json.potentially_visible {
         writeln!(out, "{n}")?;
@@ -291,7 +369,9 @@ pub fn check(args: &CheckArgs) -> Result<()> {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     };
-    let mut run = |cell: &Aabb, hidden: Option<&ObjectSet>| oracle.cell(cell, hidden).visible;
+    let backend = Backend::open(args.flags.cpu);
+    let mut run =
+        |cell: &Aabb, hidden: Option<&ObjectSet>| backend.cell(&oracle, cell, hidden).visible;
     let report = oracle_check::check(
         &oracle,
         &tracer,
@@ -379,10 +459,11 @@ pub fn check(args: &CheckArgs) -> Result<()> {
         )?;
         writeln!(
             out,
-            "  oracle           {} spatial cells in {:.2} s ({:.1} ms per cell, CPU, {}x{} depth maps)",
+            "  oracle           {} spatial cells in {:.2} s ({:.1} ms per cell, {}, {}x{} depth maps)",
             json.oracle_cells,
             json.oracle_seconds,
             json.oracle_ms_per_cell,
+            backend.name(),
             oracle.params().resolution,
             oracle.params().resolution
         )?;

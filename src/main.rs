@@ -316,6 +316,14 @@ struct SceneArgs {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if matches!(cli.command, Command::Oracle(_) | Command::Check(_))
+        && std::env::var_os("XDG_RUNTIME_DIR").is_none()
+    {
+        // Mesa's Vulkan drivers print an "error" to stderr when this is
+        // unset (it is, in containers and CI), though nothing is wrong.
+        // SAFETY: no other thread exists yet.
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
+    }
     let result = match cli.command {
         Command::Info(args) => info(&args),
         Command::Build(args) => build(&args),

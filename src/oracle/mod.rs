@@ -39,9 +39,12 @@
 //! test in `tests/it/oracle.rs` checks it with rays.
 
 pub mod oracle_check;
+#[cfg(feature = "gpu")]
+pub mod oracle_gpu;
 pub mod oracle_occluders;
 pub mod oracle_plane;
 pub mod oracle_project;
+pub mod oracle_slice;
 
 use std::time::{Duration, Instant};
 
@@ -50,7 +53,7 @@ use glam::{DVec2, DVec3};
 use crate::bitset::ObjectSet;
 use crate::geom::Aabb;
 use crate::scene::Scene;
-use oracle_occluders::{Occluder, OccluderCounts};
+use oracle_occluders::{Occluder, OccluderCounts, SlicedSolid};
 use oracle_plane::{DepthMap, ProjectedOccluder, cpu_rasterise};
 use oracle_project::{
     Frame, clip_below, corners, improved_rect, occludee_rect, occluder_views, project,
@@ -73,6 +76,9 @@ pub struct OracleParams {
     pub placement_resolution: usize,
     /// The most occluders drawn into one Depth Map (the largest first).
     pub max_occluders: usize,
+    /// Planes per face: the best position, then those that hide most
+    /// objects the chosen ones do not (the paper used one).
+    pub planes_per_face: usize,
 }
 
 impl Default for OracleParams {
@@ -84,6 +90,7 @@ impl Default for OracleParams {
             placement_occluders: 128,
             placement_resolution: 64,
             max_occluders: 4096,
+            planes_per_face: 2,
         }
     }
 }
@@ -111,7 +118,11 @@ impl OracleParams {
                 self.extension
             ));
         }
-        if self.plane_candidates == 0 || self.placement_occluders == 0 || self.max_occluders == 0 {
+        if self.plane_candidates == 0
+            || self.placement_occluders == 0
+            || self.max_occluders == 0
+            || self.planes_per_face == 0
+        {
             return Err("the occluder and plane counts must be at least 1".into());
         }
         Ok(())
@@ -125,8 +136,10 @@ pub struct PlaneReport {
     pub face: &'static str,
     /// The plane's coordinate along its axis (world units).
     pub position: f64,
-    /// Occluders drawn into its Depth Map.
+    /// Convex occluders drawn into its Depth Map.
     pub occluders: usize,
+    /// Solids whose cut by the plane was drawn.
+    pub slices: usize,
     /// Depth Map pixels holding an occluder.
     pub filled: usize,
     /// Objects this plane alone proved hidden.
@@ -172,6 +185,7 @@ pub struct CellReport {
 pub struct Oracle<'a> {
     scene: &'a Scene,
     occluders: Vec<Occluder>,
+    solids: Vec<SlicedSolid>,
     counts: OccluderCounts,
     hierarchy: BoxTree,
     params: OracleParams,
@@ -181,7 +195,11 @@ impl<'a> Oracle<'a> {
     /// Prepares the oracle for a scene.
     pub fn new(scene: &'a Scene, params: OracleParams) -> Result<Self, String> {
         params.validate()?;
-        let (occluders, counts) = oracle_occluders::extract(scene);
+        let oracle_occluders::Extracted {
+            occluders,
+            solids,
+            counts,
+        } = oracle_occluders::extract(scene);
         let boxes: Vec<(DVec3, DVec3)> = scene
             .objects()
             .iter()
@@ -190,6 +208,7 @@ impl<'a> Oracle<'a> {
         Ok(Self {
             scene,
             occluders,
+            solids,
             counts,
             hierarchy: BoxTree::new(&boxes),
             params,
@@ -214,6 +233,12 @@ impl<'a> Oracle<'a> {
     /// The number of convex occluders.
     pub fn occluder_count(&self) -> usize {
         self.occluders.len()
+    }
+
+    /// The number of objects that can be sliced (closed, or open only at
+    /// the bottom).
+    pub fn solid_count(&self) -> usize {
+        self.solids.len()
     }
 
     /// The objects that may be visible from some point of `cell`, on the
@@ -246,13 +271,14 @@ impl<'a> Oracle<'a> {
         let mut planes = Vec::new();
         let mut maps: Vec<(Frame, DepthMap, f64)> = Vec::new();
         for frame in Frame::ALL {
-            let Some((map, wp, report)) =
-                self.plane(frame, cmin, cmax, parent_hidden, &mut times, rasterise)
+            let Some(found) = self.plane(frame, cmin, cmax, parent_hidden, &mut times, rasterise)
             else {
                 continue;
             };
-            planes.push(report);
-            maps.push((frame, map, wp));
+            for (map, wp, report) in found {
+                planes.push(report);
+                maps.push((frame, map, wp));
+            }
         }
         // Occludee tests: whole boxes per plane, through the hierarchy.
         let start = Instant::now();
@@ -303,7 +329,7 @@ impl<'a> Oracle<'a> {
         parent_hidden: Option<&ObjectSet>,
         times: &mut CellTimes,
         rasterise: &mut dyn FnMut(usize, &[ProjectedOccluder]) -> Vec<f64>,
-    ) -> Option<(DepthMap, f64, PlaneReport)> {
+    ) -> Option<Vec<(DepthMap, f64, PlaneReport)>> {
         let start = Instant::now();
         let (lmin, lmax) = frame.local_box(cmin, cmax);
         let centre = 0.5 * (lmin + lmax);
@@ -311,8 +337,10 @@ impl<'a> Oracle<'a> {
         // Candidates: occluders starting strictly in front of the face,
         // ranked by the area of their view from the centre on the plane
         // one unit in front of it (a solid-angle measure).
-        let mut ranked: Vec<(f64, usize, DVec3, DVec3)> = Vec::new();
-        let mut scratch = Vec::new();
+        // Large scenes: a cheap bound from the occluder's box first (its
+        // extents over the squared distance), keeping a generous shortlist
+        // for the exact measure.
+        let mut front: Vec<(f64, usize, DVec3, DVec3)> = Vec::new();
         for (i, o) in self.occluders.iter().enumerate() {
             if skip(o) {
                 continue;
@@ -321,9 +349,25 @@ impl<'a> Oracle<'a> {
             if omin.z <= lmax.z {
                 continue;
             }
+            let e = omax - omin;
+            let d = omin.z - centre.z;
+            front.push(((e.x + e.z) * (e.y + e.z) / (d * d), i, omin, omax));
+        }
+        let shortlist = 4 * self
+            .params
+            .max_occluders
+            .max(self.params.placement_occluders);
+        if front.len() > shortlist {
+            front.select_nth_unstable_by(shortlist, |a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+            front.truncate(shortlist);
+        }
+        let mut ranked: Vec<(f64, usize, DVec3, DVec3)> = Vec::with_capacity(front.len());
+        let mut scratch = Vec::new();
+        for (_, i, omin, omax) in front {
             scratch.clear();
             scratch.extend(
-                o.points
+                self.occluders[i]
+                    .points
                     .iter()
                     .map(|&p| project(centre, frame.local(p), centre.z + 1.0)),
             );
@@ -332,22 +376,56 @@ impl<'a> Oracle<'a> {
                 ranked.push((area, i, omin, omax));
             }
         }
-        if ranked.is_empty() {
+        // Solids to slice: away from the cell (so no viewpoint is inside),
+        // and above the floor of those open at the bottom.
+        let solids: Vec<(f64, usize, f64, f64)> = self
+            .solids
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| {
+                let hidden = parent_hidden.is_some_and(|h| h.contains(s.object as usize));
+                let touching = s.min.cmple(cmax).all() && s.max.cmpge(cmin).all();
+                !hidden && !touching && s.open_bottom.is_none_or(|floor| cmin.z > floor)
+            })
+            .map(|(i, s)| {
+                let (smin, smax) = frame.local_box(s.min, s.max);
+                let e = smax - smin;
+                let d = (smin.z - centre.z).max(lmax.z - centre.z);
+                ((e.x + e.z) * (e.y + e.z) / (d * d), i, smin.z, smax.z)
+            })
+            .filter(|s| s.3 > lmax.z)
+            .collect();
+        if ranked.is_empty() && solids.is_empty() {
             times.select += start.elapsed();
             return None;
         }
         ranked.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
         let eyes: Vec<DVec3> = corners(lmin, lmax).to_vec();
-        // Plane placement: just behind each of the largest occluders.
+        // Plane placement: just behind each of the largest occluders, and
+        // through the middle of the largest solids in front of the face.
         let mut positions: Vec<f64> = ranked
             .iter()
             .take(self.params.plane_candidates)
             .map(|r| r.3.z)
             .collect();
+        let mut by_size: Vec<&(f64, usize, f64, f64)> =
+            solids.iter().filter(|s| s.2 > lmax.z).collect();
+        by_size.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        positions.extend(
+            by_size
+                .iter()
+                .take(self.params.plane_candidates / 2)
+                .map(|s| 0.5 * (s.2 + s.3)),
+        );
         positions.sort_by(f64::total_cmp);
         positions.dedup();
-        let mut best = (0usize, positions[0]);
+        if positions.is_empty() {
+            times.select += start.elapsed();
+            return None;
+        }
+        let mut scored: Vec<(ObjectSet, usize, f64)> = Vec::with_capacity(positions.len());
         for &wp in &positions {
+            let m = self.params.placement_resolution;
             let occ = self.project_occluders(
                 frame,
                 &ranked,
@@ -356,42 +434,143 @@ impl<'a> Oracle<'a> {
                 lmin,
                 lmax,
                 wp,
-                self.params.placement_resolution,
+                m,
             );
-            let filled = cpu_rasterise(self.params.placement_resolution, &occ)
+            let mut level0 = cpu_rasterise(m, &occ);
+            self.draw_slices(frame, &solids, lmin, lmax, wp, m, &mut level0);
+            let filled = level0.iter().filter(|d| d.is_finite()).count();
+            // The score: objects this plane alone hides at the low
+            // resolution, then filled pixels (the paper's measure).
+            let (rmin, rmax) = self.plane_rect(lmin, lmax, wp);
+            let mut map = DepthMap::from_level0(rmin, rmax, m, level0);
+            map.build_pyramid();
+            let mut hidden = ObjectSet::new(self.scene.objects().len());
+            let test = |qmin: DVec3, qmax: DVec3| {
+                let (a, b) = frame.local_box(qmin, qmax);
+                box_hidden(&map, lmin, lmax, a, b, wp)
+            };
+            self.hierarchy.hidden(&test, &mut hidden);
+            scored.push((hidden, filled, wp));
+        }
+        // The best position, then (greedily) those that hide the most
+        // objects the chosen ones do not.
+        let mut chosen: Vec<f64> = Vec::new();
+        let mut covered = ObjectSet::new(self.scene.objects().len());
+        while chosen.len() < self.params.planes_per_face {
+            let pick = scored
                 .iter()
-                .filter(|d| d.is_finite())
-                .count();
-            if filled > best.0 {
-                best = (filled, wp);
+                .filter(|c| !chosen.contains(&c.2))
+                .map(|c| {
+                    let mut new = c.0.clone();
+                    new.subtract(&covered);
+                    ((new.count(), c.1), c)
+                })
+                .max_by(|a, b| a.0.cmp(&b.0).then(b.1.2.total_cmp(&a.1.2)));
+            match pick {
+                Some(((gain, _), c)) if gain > 0 || chosen.is_empty() => {
+                    covered.union_with(&c.0);
+                    chosen.push(c.2);
+                }
+                _ => break,
             }
         }
-        let wp = best.1;
         times.select += start.elapsed();
+        Some(
+            chosen
+                .into_iter()
+                .map(|wp| {
+                    self.full_map(
+                        frame, &ranked, &solids, &eyes, lmin, lmax, wp, times, rasterise,
+                    )
+                })
+                .collect(),
+        )
+    }
+
+    /// The full-resolution Depth Map of one plane position.
+    #[allow(clippy::too_many_arguments)]
+    fn full_map(
+        &self,
+        frame: Frame,
+        ranked: &[(f64, usize, DVec3, DVec3)],
+        solids: &[(f64, usize, f64, f64)],
+        eyes: &[DVec3],
+        lmin: DVec3,
+        lmax: DVec3,
+        wp: f64,
+        times: &mut CellTimes,
+        rasterise: &mut dyn FnMut(usize, &[ProjectedOccluder]) -> Vec<f64>,
+    ) -> (DepthMap, f64, PlaneReport) {
         let start = Instant::now();
         let n = self.params.resolution;
         let occ = self.project_occluders(
             frame,
-            &ranked,
+            ranked,
             self.params.max_occluders,
-            &eyes,
+            eyes,
             lmin,
             lmax,
             wp,
             n,
         );
         let (rmin, rmax) = self.plane_rect(lmin, lmax, wp);
-        let mut map = DepthMap::from_level0(rmin, rmax, n, rasterise(n, &occ));
+        let mut level0 = rasterise(n, &occ);
+        let sliced = self.draw_slices(frame, solids, lmin, lmax, wp, n, &mut level0);
+        let mut map = DepthMap::from_level0(rmin, rmax, n, level0);
         map.build_pyramid();
         times.rasterise += start.elapsed();
         let report = PlaneReport {
             face: frame.name(),
             position: frame.world(DVec3::new(0.0, 0.0, wp))[frame.axis],
             occluders: occ.len(),
+            slices: sliced,
             filled: map.filled(),
             hidden: 0,
         };
-        Some((map, wp, report))
+        (map, wp, report)
+    }
+
+    /// Draws the cuts of the eligible solids (`(size, index, w min, w max)`)
+    /// that straddle the plane at `wp` into the `n` x `n` level-0 map, at
+    /// Depth 0; returns how many solids were cut.
+    #[allow(clippy::too_many_arguments)]
+    fn draw_slices(
+        &self,
+        frame: Frame,
+        solids: &[(f64, usize, f64, f64)],
+        lmin: DVec3,
+        lmax: DVec3,
+        wp: f64,
+        n: usize,
+        level0: &mut [f64],
+    ) -> usize {
+        let (rmin, rmax) = self.plane_rect(lmin, lmax, wp);
+        let pixel = (rmax - rmin) / n as f64;
+        if !(pixel.x > 0.0 && pixel.y > 0.0) {
+            return 0;
+        }
+        let mut count = 0;
+        for &(_, i, w0, w1) in solids {
+            if !(w0 < wp && wp < w1) {
+                continue;
+            }
+            let s = &self.solids[i];
+            let (smin, smax) = frame.local_box(s.min, s.max);
+            if smax.x <= rmin.x || smax.y <= rmin.y || smin.x >= rmax.x || smin.y >= rmax.y {
+                continue;
+            }
+            let Some(segments) = oracle_slice::slice_segments(s, frame, wp) else {
+                continue;
+            };
+            let px: Vec<[DVec2; 2]> = segments
+                .iter()
+                .map(|seg| seg.map(|p| (p - rmin) / pixel))
+                .collect();
+            if oracle_slice::draw_slice(level0, n, &px, 0.0) > 0 {
+                count += 1;
+            }
+        }
+        count
     }
 
     /// The plane rectangle at `wp`.

@@ -78,19 +78,52 @@ pub struct OccluderCounts {
     pub fused_triangles: usize,
 }
 
-/// Extracts the convex occluders of every object of a scene.
-pub fn extract(scene: &Scene) -> (Vec<Occluder>, OccluderCounts) {
-    let mut out = Vec::new();
-    let mut counts = OccluderCounts::default();
+/// An object whose surface encloses a volume, for slicing (papers/001
+/// sec. 3.3): where a projection plane cuts it, the cut is an occluder
+/// lying in the plane, since a segment from outside to a point inside
+/// crosses the surface.
+///
+/// Closed means every edge of the welded mesh has its twin. Extruded
+/// footprints without a floor (common in city models) are accepted too,
+/// as *open at the bottom*: every edge without a twin lies in the plane
+/// `z = open_bottom`, the object's lowest; they count as closed by a
+/// virtual floor for viewpoints strictly above that plane (a segment
+/// between two points above it cannot reach the floor).
+#[derive(Clone, Debug)]
+pub struct SlicedSolid {
+    /// The object.
+    pub object: u32,
+    /// Its triangles (welded: shared corners are bit-identical).
+    pub triangles: Vec<[DVec3; 3]>,
+    /// Its edges without a twin (all on the floor plane), as corner pairs.
+    pub open_edges: Vec<[DVec3; 2]>,
+    /// Its bounding box.
+    pub min: DVec3,
+    /// Its bounding box.
+    pub max: DVec3,
+    /// The floor plane's height when open at the bottom.
+    pub open_bottom: Option<f64>,
+}
+
+/// Everything the oracle uses of a scene's geometry.
+#[derive(Clone, Debug, Default)]
+pub struct Extracted {
+    /// Convex occluders.
+    pub occluders: Vec<Occluder>,
+    /// Objects that can be sliced.
+    pub solids: Vec<SlicedSolid>,
+    /// How objects became convex occluders.
+    pub counts: OccluderCounts,
+}
+
+/// Extracts the convex occluders and the sliceable solids of every object
+/// of a scene.
+pub fn extract(scene: &Scene) -> Extracted {
+    let mut out = Extracted::default();
     for object in 0..scene.objects().len() {
-        extract_object(
-            scene.object_triangles(object),
-            object as u32,
-            &mut out,
-            &mut counts,
-        );
+        extract_object(scene.object_triangles(object), object as u32, &mut out);
     }
-    (out, counts)
+    out
 }
 
 /// An object's welded mesh: vertex positions and triangles as indices.
@@ -123,12 +156,12 @@ fn weld(triangles: &[[Vec3; 3]]) -> Mesh {
     }
 }
 
-fn extract_object(
-    triangles: &[[Vec3; 3]],
-    object: u32,
-    out: &mut Vec<Occluder>,
-    counts: &mut OccluderCounts,
-) {
+fn extract_object(triangles: &[[Vec3; 3]], object: u32, extracted: &mut Extracted) {
+    let Extracted {
+        occluders: out,
+        solids,
+        counts,
+    } = extracted;
     let mesh = weld(triangles);
     // Directed edge -> triangle.
     let mut edges: HashMap<(u32, u32), u32> = HashMap::with_capacity(mesh.triangles.len() * 3);
@@ -139,6 +172,9 @@ fn extract_object(
                 manifold = false;
             }
         }
+    }
+    if manifold && let Some(solid) = sliced_solid(&mesh, &edges, object) {
+        solids.push(solid);
     }
     let mut used = vec![false; mesh.triangles.len()];
     // Convex solids, per edge-connected component.
@@ -170,6 +206,46 @@ fn extract_object(
         }
         out.push(Occluder::new(object, polygon.points, false));
     }
+}
+
+/// The mesh as a solid to slice, if it is closed or open only at its
+/// bottom.
+fn sliced_solid(mesh: &Mesh, edges: &HashMap<(u32, u32), u32>, object: u32) -> Option<SlicedSolid> {
+    if mesh.triangles.is_empty() {
+        return None;
+    }
+    let (min, max) = mesh
+        .vertices
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), &p| {
+            (a.min(p), b.max(p))
+        });
+    let mut open_edges = Vec::new();
+    for t in &mesh.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            if !edges.contains_key(&(b, a)) {
+                let (pa, pb) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
+                if pa.z != min.z || pb.z != min.z {
+                    return None;
+                }
+                open_edges.push([pa, pb]);
+            }
+        }
+    }
+    let open_bottom = (!open_edges.is_empty()).then_some(min.z);
+    Some(SlicedSolid {
+        object,
+        triangles: mesh
+            .triangles
+            .iter()
+            .map(|t| t.map(|i| mesh.vertices[i as usize]))
+            .collect(),
+        open_edges,
+        min,
+        max,
+        open_bottom,
+    })
 }
 
 /// Edge-connected components of a mesh, as triangle lists.
@@ -386,7 +462,11 @@ mod tests {
         // 2 pi in f32): not closed, so its faces are used instead.
         let mut c = Vec::new();
         push_cylinder(&mut c, Vec3::ZERO, Vec3::Z, 1.0, 12);
-        let (occ, counts) = extract(&scene_of(vec![a, tet, c]));
+        let Extracted {
+            occluders: occ,
+            counts,
+            ..
+        } = extract(&scene_of(vec![a, tet, c]));
         assert_eq!(counts.solids, 2, "{counts:?}");
         assert_eq!(occ[0].points.len(), 8);
         assert_eq!(occ[1].points.len(), 4);
@@ -398,7 +478,11 @@ mod tests {
         let mut a = Vec::new();
         push_box(&mut a, Vec3::ZERO, Vec3::ONE);
         push_box(&mut a, Vec3::splat(2.0), Vec3::splat(3.0));
-        let (occ, counts) = extract(&scene_of(vec![a]));
+        let Extracted {
+            occluders: occ,
+            counts,
+            ..
+        } = extract(&scene_of(vec![a]));
         // One object of two boxes: each is a closed convex component.
         assert_eq!(counts.solids, 2, "{counts:?}");
         assert_eq!(occ.len(), 2);
@@ -406,7 +490,7 @@ mod tests {
         let mut b = Vec::new();
         push_box(&mut b, Vec3::ZERO, Vec3::ONE);
         push_box(&mut b, Vec3::new(-1.0, -1.0, 0.0), Vec3::new(0.0, 0.0, 1.0));
-        let (_, counts) = extract(&scene_of(vec![b]));
+        let counts = extract(&scene_of(vec![b])).counts;
         assert_eq!(
             (counts.solids, counts.polygons, counts.triangles),
             (0, 12, 0),
@@ -416,10 +500,29 @@ mod tests {
         let mut open = Vec::new();
         push_box(&mut open, Vec3::ZERO, Vec3::ONE);
         open.truncate(10);
-        let (occ, counts) = extract(&scene_of(vec![open]));
+        let Extracted {
+            occluders: occ,
+            counts,
+            solids,
+        } = extract(&scene_of(vec![open.clone()]));
         assert_eq!(counts.solids, 0);
         assert_eq!(counts.polygons, 5, "{counts:?}");
         assert!(occ.iter().all(|o| o.points.len() == 4));
+        // Open at a side: not a solid to slice; open at the bottom: one.
+        assert!(solids.is_empty());
+        let floorless: Vec<[Vec3; 3]> = {
+            let mut b = Vec::new();
+            push_box(&mut b, Vec3::ZERO, Vec3::ONE);
+            b.split_off(2)
+        };
+        let solids = extract(&scene_of(vec![floorless])).solids;
+        assert_eq!(solids.len(), 1);
+        assert_eq!(solids[0].open_bottom, Some(0.0));
+        assert_eq!(solids[0].open_edges.len(), 4);
+        let mut closed = Vec::new();
+        push_box(&mut closed, Vec3::ZERO, Vec3::ONE);
+        let solids = extract(&scene_of(vec![closed])).solids;
+        assert_eq!((solids.len(), solids[0].open_bottom), (1, None));
     }
 
     #[test]
@@ -432,7 +535,11 @@ mod tests {
             })
             .collect();
         let fan: Vec<[Vec3; 3]> = (1..7).map(|i| [ring[0], ring[i], ring[i + 1]]).collect();
-        let (occ, counts) = extract(&scene_of(vec![fan]));
+        let Extracted {
+            occluders: occ,
+            counts,
+            ..
+        } = extract(&scene_of(vec![fan]));
         assert_eq!((counts.polygons, counts.triangles), (1, 0), "{counts:?}");
         assert_eq!(occ[0].points.len(), 8);
         // An L of three unit squares (6 triangles): not convex as a whole.
@@ -444,7 +551,7 @@ mod tests {
             ]
         };
         let l: Vec<[Vec3; 3]> = [sq(0.0, 0.0), sq(1.0, 0.0), sq(0.0, 1.0)].concat();
-        let (occ, _) = extract(&scene_of(vec![l]));
+        let occ = extract(&scene_of(vec![l])).occluders;
         let area: f64 = occ
             .iter()
             .map(|o| {

@@ -114,7 +114,7 @@ fn span_at(poly: &[DVec2], y: f64) -> Option<(f64, f64)> {
 /// corners, convex counter-clockwise polygons in the map's pixel
 /// coordinates (pixel `(i, j)` covers `[i, i + 1] x [j, j + 1]`), and its
 /// Depth. Its Projection is the intersection of the views.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct ProjectedOccluder {
     /// The views, one per cell corner.
     pub views: Vec<Vec<DVec2>>,

@@ -130,6 +130,69 @@ fn never_wrong_on_machine() {
     check_scene("machine.obj", 100_000);
 }
 
+/// The GPU rasteriser, or `None` (skip) without an adapter, unless
+/// `VIS5D_REQUIRE_GPU` is set (CI sets it: there the GPU path must run).
+fn gpu() -> Option<vis5d::oracle::oracle_gpu::GpuRasteriser> {
+    match vis5d::oracle::oracle_gpu::GpuRasteriser::new() {
+        Ok(g) => Some(g),
+        Err(e) => {
+            assert!(
+                std::env::var_os("VIS5D_REQUIRE_GPU").is_none(),
+                "VIS5D_REQUIRE_GPU is set but there is no GPU adapter: {e}"
+            );
+            eprintln!("skipping the GPU oracle test: {e}");
+            None
+        }
+    }
+}
+
+/// On the GPU the oracle is never wrong either, and hides a subset of what
+/// the CPU hides (the GPU fills a subset of the pixels, with margins
+/// against the hardware's rounding), nearly all of it.
+#[test]
+fn the_gpu_oracle_is_never_wrong_and_close_to_the_cpu() {
+    let Some(gpu) = gpu() else { return };
+    for name in ["city.obj", "office.obj"] {
+        let scene = scene::load(committed(name)).expect("committed scene loads");
+        let tracer = Tracer::new(&scene);
+        let oracle = Oracle::new(&scene, OracleParams::default()).expect("default parameters");
+        let mut rng = Pcg64::seed_from_u64(0x69f0);
+        let (mut cpu_hidden, mut gpu_hidden) = (0, 0);
+        for (label, cell) in cells(&scene, &mut rng) {
+            let cpu = oracle.cell(&cell, None);
+            let on_gpu = oracle.cell_with(&cell, None, &mut |n, occ| {
+                gpu.rasterise(n, occ).expect("the GPU rasterises")
+            });
+            assert!(
+                cpu.visible.is_subset(&on_gpu.visible),
+                "{name}, {label}: the GPU hid what the CPU keeps"
+            );
+            cpu_hidden += scene.objects().len() - cpu.visible.count();
+            gpu_hidden += scene.objects().len() - on_gpu.visible.count();
+            let rays: Vec<Ray> = (0..100_000)
+                .map(|_| {
+                    let t = Vec3::new(rng.random(), rng.random(), rng.random());
+                    Ray::new(cell.min + (cell.max - cell.min) * t, direction(&mut rng))
+                })
+                .collect();
+            for (ray, hit) in rays.iter().zip(tracer.closest_hits(&rays)) {
+                if let Some(h) = hit {
+                    assert!(
+                        on_gpu.visible.contains(h.object as usize),
+                        "{name}, {label}: the GPU oracle hid {} which {ray:?} hits",
+                        scene.objects()[h.object as usize].name
+                    );
+                }
+            }
+        }
+        eprintln!("{name}: hidden objects over the cells: CPU {cpu_hidden}, GPU {gpu_hidden}");
+        assert!(
+            gpu_hidden as f64 >= 0.9 * cpu_hidden as f64,
+            "{name}: CPU {cpu_hidden}, GPU {gpu_hidden}"
+        );
+    }
+}
+
 fn vis5d(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_vis5d"))
         .args(args)

@@ -1,0 +1,1644 @@
+//! GPU rasterisation of extended-projection occluders into a Depth Map
+//! (papers/001 sec. 3.2 and appendix A), the twin of the CPU rasteriser.
+//!
+//! Each occluder comes as its views from the corners of the view cell
+//! (convex polygons in the pixel coordinates of the map) and its Depth. A
+//! pixel belongs to the occluder's extended projection when it lies
+//! entirely inside every view; the map keeps, per pixel, the smallest Depth
+//! of the occluders it belongs to. The result feeds a "never wrong"
+//! occlusion oracle, so every step errs on one side only: a pixel may be
+//! left out (the map is then less useful) but never written where no
+//! occluder covers it entirely, and a stored Depth is never below the true
+//! one.
+//!
+//! How it is done:
+//!
+//! 1. **Erosion (CPU, f64).** A pixel square lies inside a convex polygon
+//!    iff its centre lies inside the polygon eroded by the square, and for
+//!    a half-plane with unit inward normal `(nx, ny)` that erosion moves
+//!    the edge inward by `0.5 * (|nx| + |ny|)` pixels. Each view is eroded
+//!    that way plus a margin of 1/16 pixel (GPUs snap vertices to a
+//!    sub-pixel grid and round in f32), so the GPU's pixel-centre sampling
+//!    of the eroded polygon only ever picks pixels entirely inside the
+//!    view. Edges that
+//!    are exactly horizontal or vertical are placed on the integer pixel
+//!    boundary instead, which is exact (see `erode_view`).
+//! 2. **Stencil counting (GPU).** Per occluder, view `i` is drawn with the
+//!    stencil test `Equal(i)` and `IncrementClamp`, with no colour or depth
+//!    write: after its `k` views a pixel holds `k` iff every view covered
+//!    it. The test (rather than a blind increment) makes overlapping
+//!    triangles of one view harmless: the second one finds `i + 1` and
+//!    leaves it. A quad over the occluder's bounding box is then drawn with
+//!    `Equal(k)`, writing the Depth (colour) and keeping the smallest
+//!    (depth test); its stencil operations reset every pixel to 0 for the
+//!    next occluder.
+//! 3. **Batching.** Occluders whose bounding boxes are disjoint share draw
+//!    calls (view `i` of all of them in one draw, then all their quads),
+//!    so a map costs `k + 1` draws per batch rather than per occluder, all
+//!    in one vertex buffer, one render pass and one submission.
+
+use std::ops::Range;
+use std::sync::mpsc;
+use std::sync::{Arc, Mutex};
+
+use glam::DVec2;
+use wgpu::util::DeviceExt;
+
+pub use super::oracle_plane::ProjectedOccluder;
+
+/// GPU failures: no adapter, device lost, validation error, readback
+/// failure.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    /// No Vulkan, Metal or DirectX 12 adapter was found.
+    #[error(
+        "no GPU adapter found for Vulkan, Metal or DirectX 12 (the OpenGL backend is not used); \
+         on Linux without a GPU, install Mesa's CPU Vulkan driver: \
+         apt-get install mesa-vulkan-drivers libvulkan1"
+    )]
+    NoAdapter,
+    /// The adapter was found but a device could not be opened on it.
+    #[error("could not open a GPU device on {adapter}: {message}")]
+    RequestDevice {
+        /// The adapter's name and backend.
+        adapter: String,
+        /// What wgpu said.
+        message: String,
+    },
+    /// The adapter lacks something the rasteriser needs.
+    #[error("the GPU adapter {adapter} cannot rasterise depth maps: {message}")]
+    Unsupported {
+        /// The adapter's name and backend.
+        adapter: String,
+        /// What is missing.
+        message: String,
+    },
+    /// The request itself is invalid (map size, number of views).
+    #[error("invalid depth map request: {0}")]
+    InvalidInput(String),
+    /// The GPU reported a validation, out-of-memory or internal error.
+    #[error("the GPU reported an error while rasterising the depth map: {0}")]
+    Gpu(String),
+    /// The device was lost (driver reset, GPU removed).
+    #[error("the GPU device was lost: {0}")]
+    DeviceLost(String),
+    /// The finished map could not be copied back from the GPU.
+    #[error("could not read the depth map back from the GPU: {0}")]
+    Readback(String),
+}
+
+/// Extra inward shift of every slanted eroded edge, in pixels, so that GPU
+/// rasterisation cannot pick a pixel centre outside the exactly eroded
+/// polygon. Vulkan snaps vertices to a grid of at least 4 sub-pixel bits
+/// (`subPixelPrecisionBits >= 4`), moving each vertex by up to 1/32 pixel
+/// in x and y, i.e. up to sqrt(2)/32 = 0.044 pixel; rounding the vertices
+/// to f32 and the viewport transform add below 1e-3 pixel at n = 4096. A
+/// snapped triangle stays within that distance of the exact one, so a
+/// margin of 1/16 pixel covers both. Smaller margins are not safe: with
+/// 1e-3 (and with 0) the tests here catch lavapipe writing pixels outside
+/// the views, as its 8 sub-pixel bits move vertices by up to 0.003 pixel.
+const SNAP_MARGIN: f64 = 1.0 / 16.0;
+
+/// Bound on the f64 rounding error of an edge test, relative to the
+/// largest coordinate involved.
+const F64_ERROR: f64 = 64.0 * f64::EPSILON;
+
+/// The largest map side.
+const MAX_SIDE: usize = 4096;
+
+/// The most views an occluder may have: the stencil buffer has 8 bits.
+const MAX_VIEWS: usize = 255;
+
+/// The most occluders drawn together in one batch.
+const MAX_BATCH: usize = 1024;
+
+/// How many batches back a new occluder looks for a place.
+const BATCH_SCAN: usize = 64;
+
+/// The largest vertex buffer of one render pass, in vertices (64 MiB).
+const CHUNK_VERTICES: usize = 4 << 20;
+
+/// Bytes of one vertex: NDC x, NDC y, normalised depth, value (all f32).
+const VERTEX_BYTES: u64 = 16;
+
+/// The colour target's format: the stored value.
+const VALUE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
+
+/// The vertex shader passes positions through; the resolve fragment shader
+/// writes the occluder's value. `flat` keeps the value bit-exact (an
+/// interpolated constant could come out an ulp lower).
+const SHADER: &str = r"
+struct VsOut {
+    @builtin(position) position: vec4<f32>,
+    @location(0) @interpolate(flat) value: f32,
+}
+
+@vertex
+fn vs_main(@location(0) v: vec4<f32>) -> VsOut {
+    var out: VsOut;
+    out.position = vec4<f32>(v.x, v.y, v.z, 1.0);
+    out.value = v.w;
+    return out;
+}
+
+@fragment
+fn fs_count() -> @location(0) vec4<f32> {
+    return vec4<f32>(0.0, 0.0, 0.0, 0.0);
+}
+
+@fragment
+fn fs_resolve(in: VsOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(in.value, 0.0, 0.0, 0.0);
+}
+";
+
+/// A wgpu device ready to rasterise depth maps.
+pub struct GpuRasteriser {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    info: wgpu::AdapterInfo,
+    depth_format: wgpu::TextureFormat,
+    /// Draws a view: stencil `Equal(i)` then `IncrementClamp`, no writes.
+    count_pipeline: wgpu::RenderPipeline,
+    /// Draws the bounding quads: stencil `Equal(k)`, value and depth
+    /// written where the depth test passes, stencil reset to 0.
+    resolve_pipeline: wgpu::RenderPipeline,
+    /// Errors wgpu reported outside this crate's error scopes.
+    uncaptured: Arc<Mutex<Vec<String>>>,
+    /// Set when the device is lost.
+    lost: Arc<Mutex<Option<String>>>,
+}
+
+impl std::fmt::Debug for GpuRasteriser {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuRasteriser")
+            .field("adapter", &self.adapter_name())
+            .field("depth_format", &self.depth_format)
+            .finish()
+    }
+}
+
+impl GpuRasteriser {
+    /// Opens a Vulkan (or other PRIMARY backend: Metal, DirectX 12)
+    /// adapter; `Err` with a clear message when there is none. The OpenGL
+    /// backend is never used (its R32Float render targets fail validation;
+    /// DESIGN.md, "Dependencies"). Prefers a discrete GPU, then an
+    /// integrated one, then a CPU driver such as lavapipe.
+    pub fn new() -> Result<Self, GpuError> {
+        Self::open(true)
+    }
+
+    /// Opens the device; `depth32` allows Depth32FloatStencil8 (tests turn
+    /// it off to exercise Depth24PlusStencil8).
+    fn open(depth32: bool) -> Result<Self, GpuError> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: wgpu::Backends::PRIMARY,
+            flags: wgpu::InstanceFlags::empty(),
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        });
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::PRIMARY));
+        let rank = |t: wgpu::DeviceType| match t {
+            wgpu::DeviceType::DiscreteGpu => 0,
+            wgpu::DeviceType::IntegratedGpu => 1,
+            wgpu::DeviceType::VirtualGpu => 2,
+            wgpu::DeviceType::Other => 3,
+            wgpu::DeviceType::Cpu => 4,
+        };
+        let adapter = adapters
+            .into_iter()
+            .filter(|a| {
+                matches!(
+                    a.get_info().backend,
+                    wgpu::Backend::Vulkan | wgpu::Backend::Metal | wgpu::Backend::Dx12
+                )
+            })
+            .min_by_key(|a| rank(a.get_info().device_type))
+            .ok_or(GpuError::NoAdapter)?;
+        let info = adapter.get_info();
+        let name = describe(&info);
+
+        // Depth32FloatStencil8 where offered; Depth24PlusStencil8 is always
+        // there. Either is sound (see `depth_key`).
+        let (depth_format, features) = if depth32
+            && adapter
+                .features()
+                .contains(wgpu::Features::DEPTH32FLOAT_STENCIL8)
+        {
+            (
+                wgpu::TextureFormat::Depth32FloatStencil8,
+                wgpu::Features::DEPTH32FLOAT_STENCIL8,
+            )
+        } else {
+            (
+                wgpu::TextureFormat::Depth24PlusStencil8,
+                wgpu::Features::empty(),
+            )
+        };
+        for (format, need) in [
+            (VALUE_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT),
+            (depth_format, wgpu::TextureUsages::RENDER_ATTACHMENT),
+        ] {
+            let allowed = adapter.get_texture_format_features(format).allowed_usages;
+            if !allowed.contains(need) {
+                return Err(GpuError::Unsupported {
+                    adapter: name,
+                    message: format!("{format:?} cannot be a render target"),
+                });
+            }
+        }
+
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("vis5d depth map"),
+            required_features: features,
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::RequestDevice {
+            adapter: name.clone(),
+            message: e.to_string(),
+        })?;
+
+        // Errors outside our scopes would otherwise panic: keep them (a
+        // few) and report them from the next call instead.
+        let uncaptured = Arc::new(Mutex::new(Vec::new()));
+        let sink = Arc::clone(&uncaptured);
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            let mut errors = sink.lock().unwrap_or_else(|p| p.into_inner());
+            if errors.len() < 8 {
+                errors.push(e.to_string());
+            }
+        }));
+        let lost = Arc::new(Mutex::new(None));
+        let lost_sink = Arc::clone(&lost);
+        device.set_device_lost_callback(move |reason, message| {
+            *lost_sink.lock().unwrap_or_else(|p| p.into_inner()) =
+                Some(format!("{reason:?}: {message}"));
+        });
+
+        let scope = ErrorScopes::push(&device);
+        let (count_pipeline, resolve_pipeline) = make_pipelines(&device, depth_format);
+        scope.pop().map_err(|e| GpuError::Unsupported {
+            adapter: name.clone(),
+            message: format!("creating the pipelines failed: {e}"),
+        })?;
+
+        Ok(Self {
+            device,
+            queue,
+            info,
+            depth_format,
+            count_pipeline,
+            resolve_pipeline,
+            uncaptured,
+            lost,
+        })
+    }
+
+    /// The adapter's name and backend, for messages ("llvmpipe (Vulkan)").
+    pub fn adapter_name(&self) -> String {
+        describe(&self.info)
+    }
+
+    /// Rasterises: returns an n*n map (row-major, row j at j*n..), where
+    /// each pixel holds the smallest `depth` among the occluders whose
+    /// views ALL cover the pixel ENTIRELY (the intersection of the views,
+    /// i.e. stencil count == number of views), and `f64::INFINITY` where
+    /// none does. n is a power of two, 1..=4096.
+    ///
+    /// Conservative: a pixel may be left out by an occluder that covers it
+    /// (when it lies within about 0.06 pixel of a slanted edge), never the
+    /// other way. A stored value is the Depth, rounded up to f32, of an
+    /// occluder that covers the pixel entirely (the smallest among those
+    /// drawn there), so it is never below the true smallest Depth.
+    pub fn rasterise(
+        &self,
+        n: usize,
+        occluders: &[ProjectedOccluder],
+    ) -> Result<Vec<f64>, GpuError> {
+        self.rasterise_in_passes(n, occluders, CHUNK_VERTICES)
+    }
+
+    /// [`Self::rasterise`] with render passes of at most `chunk_vertices`
+    /// vertices each (a single larger batch gets a pass of its own).
+    fn rasterise_in_passes(
+        &self,
+        n: usize,
+        occluders: &[ProjectedOccluder],
+        chunk_vertices: usize,
+    ) -> Result<Vec<f64>, GpuError> {
+        if !n.is_power_of_two() || n > MAX_SIDE {
+            return Err(GpuError::InvalidInput(format!(
+                "the map side must be a power of two from 1 to {MAX_SIDE}, not {n}"
+            )));
+        }
+        if let Some((index, o)) = occluders
+            .iter()
+            .enumerate()
+            .find(|(_, o)| o.views.len() > MAX_VIEWS)
+        {
+            return Err(GpuError::InvalidInput(format!(
+                "occluder {index} has {} views; the stencil buffer counts at most {MAX_VIEWS}",
+                o.views.len()
+            )));
+        }
+        let limits = self.device.limits();
+        if n as u64 > u64::from(limits.max_texture_dimension_2d) {
+            return Err(GpuError::Unsupported {
+                adapter: self.adapter_name(),
+                message: format!(
+                    "maps of side {n} exceed its largest texture ({})",
+                    limits.max_texture_dimension_2d
+                ),
+            });
+        }
+
+        let prepared = prepare(n, occluders);
+        if prepared.is_empty() {
+            return Ok(vec![f64::INFINITY; n * n]);
+        }
+        let batches = make_batches(n, &prepared);
+        let chunks = build_vertices(n, &prepared, &batches, chunk_vertices);
+        let max_vertices = limits.max_buffer_size / VERTEX_BYTES;
+        if let Some(c) = chunks
+            .iter()
+            .find(|c| c.vertices.len() as u64 > max_vertices)
+        {
+            return Err(GpuError::Unsupported {
+                adapter: self.adapter_name(),
+                message: format!(
+                    "a batch needs {} vertices, more than one buffer holds ({max_vertices})",
+                    c.vertices.len()
+                ),
+            });
+        }
+
+        self.check_health()?;
+        let scope = ErrorScopes::push(&self.device);
+        let result = self.draw_and_read(n, &chunks);
+        let scoped = scope.pop();
+        self.check_health()?;
+        scoped.map_err(GpuError::Gpu)?;
+        result
+    }
+
+    /// Reports a lost device or errors wgpu raised outside any scope.
+    fn check_health(&self) -> Result<(), GpuError> {
+        if let Some(reason) = self.lost.lock().unwrap_or_else(|p| p.into_inner()).clone() {
+            return Err(GpuError::DeviceLost(reason));
+        }
+        let mut errors = self.uncaptured.lock().unwrap_or_else(|p| p.into_inner());
+        if !errors.is_empty() {
+            let message = errors.join("; ");
+            errors.clear();
+            return Err(GpuError::Gpu(message));
+        }
+        Ok(())
+    }
+
+    /// Records the render passes, submits them and reads the map back.
+    fn draw_and_read(&self, n: usize, chunks: &[Chunk]) -> Result<Vec<f64>, GpuError> {
+        let side = n as u32;
+        let extent = wgpu::Extent3d {
+            width: side,
+            height: side,
+            depth_or_array_layers: 1,
+        };
+        let texture = |label, format, usage| {
+            self.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: extent,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let value = texture(
+            "depth map values",
+            VALUE_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        );
+        let depth = texture(
+            "depth map depth-stencil",
+            self.depth_format,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
+        let value_view = value.create_view(&wgpu::TextureViewDescriptor::default());
+        let depth_view = depth.create_view(&wgpu::TextureViewDescriptor::default());
+
+        let buffers: Vec<wgpu::Buffer> = chunks
+            .iter()
+            .map(|c| {
+                let bytes: Vec<u8> = c
+                    .vertices
+                    .iter()
+                    .flat_map(|v| v.iter().flat_map(|x| x.to_ne_bytes()))
+                    .collect();
+                self.device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("depth map vertices"),
+                        contents: &bytes,
+                        usage: wgpu::BufferUsages::VERTEX,
+                    })
+            })
+            .collect();
+
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("depth map"),
+            });
+        for (c, (chunk, buffer)) in chunks.iter().zip(&buffers).enumerate() {
+            let first = c == 0;
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("depth map occluders"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &value_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: if first {
+                            wgpu::LoadOp::Clear(wgpu::Color {
+                                r: f64::INFINITY,
+                                g: 0.0,
+                                b: 0.0,
+                                a: 0.0,
+                            })
+                        } else {
+                            wgpu::LoadOp::Load
+                        },
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: if first {
+                            wgpu::LoadOp::Clear(1.0)
+                        } else {
+                            wgpu::LoadOp::Load
+                        },
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: Some(wgpu::Operations {
+                        load: if first {
+                            wgpu::LoadOp::Clear(0)
+                        } else {
+                            wgpu::LoadOp::Load
+                        },
+                        store: wgpu::StoreOp::Store,
+                    }),
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_vertex_buffer(0, buffer.slice(..));
+            for batch in &chunk.batches {
+                pass.set_pipeline(&self.count_pipeline);
+                for (i, range) in batch.views.iter().enumerate() {
+                    pass.set_stencil_reference(i as u32);
+                    pass.draw(range.clone(), 0..1);
+                }
+                pass.set_pipeline(&self.resolve_pipeline);
+                pass.set_stencil_reference(batch.views.len() as u32);
+                pass.draw(batch.quads.clone(), 0..1);
+            }
+        }
+
+        // Rows of a texture copy are padded to 256 bytes.
+        let row_bytes = (4 * side).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("depth map readback"),
+            size: u64::from(row_bytes) * u64::from(side),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &value,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &readback,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(row_bytes),
+                    rows_per_image: Some(side),
+                },
+            },
+            extent,
+        );
+        self.queue.submit([encoder.finish()]);
+
+        let (sender, receiver) = mpsc::channel();
+        readback.map_async(wgpu::MapMode::Read, .., move |r| {
+            let _ = sender.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        receiver
+            .recv()
+            .map_err(|_| GpuError::Readback("the mapping was never answered".into()))?
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        let map = {
+            let data = readback
+                .get_mapped_range(..)
+                .map_err(|e| GpuError::Readback(e.to_string()))?;
+            let mut map = Vec::with_capacity(n * n);
+            for row in data.chunks_exact(row_bytes as usize) {
+                map.extend(
+                    row[..4 * n]
+                        .chunks_exact(4)
+                        .map(|b| f64::from(f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))),
+                );
+            }
+            map
+        };
+        readback.unmap();
+        Ok(map)
+    }
+}
+
+/// "name (Backend)".
+fn describe(info: &wgpu::AdapterInfo) -> String {
+    format!("{} ({:?})", info.name, info.backend)
+}
+
+/// Validation, out-of-memory and internal error scopes, popped together.
+struct ErrorScopes {
+    guards: Vec<wgpu::ErrorScopeGuard>,
+}
+
+impl ErrorScopes {
+    fn push(device: &wgpu::Device) -> Self {
+        let guards = [
+            wgpu::ErrorFilter::Validation,
+            wgpu::ErrorFilter::OutOfMemory,
+            wgpu::ErrorFilter::Internal,
+        ]
+        .into_iter()
+        .map(|f| device.push_error_scope(f))
+        .collect();
+        Self { guards }
+    }
+
+    /// Pops the scopes (innermost first); the errors caught, joined.
+    fn pop(mut self) -> Result<(), String> {
+        let mut errors = Vec::new();
+        while let Some(guard) = self.guards.pop() {
+            if let Some(e) = pollster::block_on(guard.pop()) {
+                errors.push(e.to_string());
+            }
+        }
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            Err(errors.join("; "))
+        }
+    }
+}
+
+/// The two pipelines: counting views into the stencil buffer, and writing
+/// the quads where the count is complete.
+fn make_pipelines(
+    device: &wgpu::Device,
+    depth_format: wgpu::TextureFormat,
+) -> (wgpu::RenderPipeline, wgpu::RenderPipeline) {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("depth map shader"),
+        source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+    });
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("depth map layout"),
+        bind_group_layouts: &[],
+        immediate_size: 0,
+    });
+    let attributes = wgpu::vertex_attr_array![0 => Float32x4];
+    let buffers = [Some(wgpu::VertexBufferLayout {
+        array_stride: VERTEX_BYTES,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &attributes,
+    })];
+    let pipeline = |label, fragment, writes, depth_write, depth_compare, stencil_face| {
+        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some(label),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &buffers,
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: depth_format,
+                depth_write_enabled: Some(depth_write),
+                depth_compare: Some(depth_compare),
+                stencil: wgpu::StencilState {
+                    front: stencil_face,
+                    back: stencil_face,
+                    read_mask: 0xff,
+                    write_mask: 0xff,
+                },
+                bias: wgpu::DepthBiasState::default(),
+            }),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some(fragment),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: VALUE_FORMAT,
+                    blend: None,
+                    write_mask: writes,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
+    };
+    // View i of an occluder: pixels whose count is i (covered by views
+    // 0..i) go to i + 1; a second triangle of the same view over the same
+    // pixel then finds i + 1 and keeps it.
+    let count = pipeline(
+        "depth map count views",
+        "fs_count",
+        wgpu::ColorWrites::empty(),
+        false,
+        wgpu::CompareFunction::Always,
+        wgpu::StencilFaceState {
+            compare: wgpu::CompareFunction::Equal,
+            fail_op: wgpu::StencilOperation::Keep,
+            depth_fail_op: wgpu::StencilOperation::Keep,
+            pass_op: wgpu::StencilOperation::IncrementClamp,
+        },
+    );
+    // The quad: where the count is k (all views), keep the smaller depth;
+    // every pixel of the quad returns to 0 whatever the tests say.
+    let resolve = pipeline(
+        "depth map resolve",
+        "fs_resolve",
+        wgpu::ColorWrites::ALL,
+        true,
+        wgpu::CompareFunction::LessEqual,
+        wgpu::StencilFaceState {
+            compare: wgpu::CompareFunction::Equal,
+            fail_op: wgpu::StencilOperation::Zero,
+            depth_fail_op: wgpu::StencilOperation::Zero,
+            pass_op: wgpu::StencilOperation::Zero,
+        },
+    );
+    (count, resolve)
+}
+
+/// The smallest f32 that is >= `x` (x not NaN): round to nearest, then up
+/// one step if that fell below.
+fn f32_at_least(x: f64) -> f32 {
+    let f = x as f32;
+    if f64::from(f) < x { f.next_up() } else { f }
+}
+
+/// The normalised depth of a value: its f32 bits mapped to an unsigned key
+/// that orders like the values, keeping the top 24 bits, over 2^24. It is
+/// monotone (never decreasing) in the value, exact in f32, below 1, and
+/// any depth buffer's quantisation of it is monotone too.
+///
+/// Why the depth buffer cannot make the map unsound: the value written to
+/// a pixel is always the (rounded-up) Depth of an occluder that covers the
+/// pixel, because the stencil test admits only covering occluders; the
+/// depth test only chooses *which* covering occluder's value survives. So
+/// a stored value is >= the smallest covering Depth whatever the depth
+/// buffer does. Its precision only decides tightness: two values with the
+/// same key tie, and ties are settled by drawing occluders in decreasing
+/// value (see [`make_batches`]) so that `LessEqual` lets the smaller one
+/// win; the map then holds exactly the smallest covering value.
+fn depth_key(value: f32) -> f32 {
+    let bits = value.to_bits();
+    let key = if bits & 0x8000_0000 != 0 {
+        !bits
+    } else {
+        bits | 0x8000_0000
+    };
+    (key >> 8) as f32 / (1u32 << 24) as f32
+}
+
+/// An occluder ready to draw.
+struct Prepared {
+    /// The Depth rounded up to f32.
+    value: f32,
+    /// The eroded views (each non-empty), clipped to [-1, n + 1]^2.
+    views: Vec<Vec<DVec2>>,
+    /// Pixel columns x0..x1 and rows y0..y1 around all its views, with one
+    /// pixel to spare, clipped to the map; never empty.
+    rect: [u32; 4],
+}
+
+/// Erodes every occluder's views and drops those that can write nothing.
+fn prepare(n: usize, occluders: &[ProjectedOccluder]) -> Vec<Prepared> {
+    let side = n as f64;
+    occluders
+        .iter()
+        .filter(|o| !o.views.is_empty() && !o.depth.is_nan() && o.depth != f64::INFINITY)
+        .filter_map(|o| {
+            let views: Vec<Vec<DVec2>> = o
+                .views
+                .iter()
+                .map(|v| erode_view(v, side))
+                .collect::<Option<_>>()?;
+            let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+            for p in views.iter().flatten() {
+                lo = lo.min(*p);
+                hi = hi.max(*p);
+            }
+            let clamp = |x: f64| x.clamp(0.0, side) as u32;
+            let rect = [
+                clamp(lo.x.floor() - 1.0),
+                clamp(lo.y.floor() - 1.0),
+                clamp(hi.x.ceil() + 1.0),
+                clamp(hi.y.ceil() + 1.0),
+            ];
+            (rect[0] < rect[2] && rect[1] < rect[3]).then(|| Prepared {
+                value: f32_at_least(o.depth),
+                views,
+                rect,
+            })
+        })
+        .collect()
+}
+
+/// Twice the signed area of a polygon (positive when counter-clockwise).
+fn signed_area2(p: &[DVec2]) -> f64 {
+    (0..p.len())
+        .map(|i| p[i].perp_dot(p[(i + 1) % p.len()]))
+        .sum()
+}
+
+/// Keeps the part of a convex polygon where `f >= 0` (`f` affine).
+fn clip(poly: &[DVec2], f: impl Fn(DVec2) -> f64) -> Vec<DVec2> {
+    let mut out = Vec::with_capacity(poly.len() + 1);
+    for (i, &a) in poly.iter().enumerate() {
+        let b = poly[(i + 1) % poly.len()];
+        let (fa, fb) = (f(a), f(b));
+        if fa >= 0.0 {
+            out.push(a);
+        }
+        if (fa >= 0.0) != (fb >= 0.0) {
+            // Clamped so the new vertex stays on the segment, hence inside
+            // the earlier half-planes.
+            let t = (fa / (fa - fb)).clamp(0.0, 1.0);
+            out.push(a + (b - a) * t);
+        }
+    }
+    out
+}
+
+/// The eroded view: the region where a pixel centre may be sampled by the
+/// GPU only if the pixel square lies inside `view`, or `None` if empty.
+///
+/// Computed as the intersection of the square [-1, n + 1]^2 with one
+/// half-plane per edge (Sutherland-Hodgman clipping in f64), not by
+/// intersecting consecutive offset lines: when erosion makes a short edge
+/// vanish, the half-plane intersection is still exact, where consecutive
+/// lines would produce a vertex outside. Each half-plane is:
+///
+/// - slanted edge, unit inward normal `nn`: `nn . (x - a) >= 0.5 (|nn.x| +
+///   |nn.y|) + SNAP_MARGIN + rounding`, the Minkowski erosion by the pixel
+///   square plus the GPU margin;
+/// - horizontal or vertical edge (exactly, in f64) at coordinate c: the
+///   pixels inside are those from `ceil(c)` on (or up to `floor(c)`), so
+///   the boundary goes on that integer, halfway between pixel centres. No
+///   pixel centre lies within 0.5 of it, far more than any GPU rounding,
+///   so pixels flush with the edge are kept.
+///
+/// For a convex view this is exactly "pixel square inside the view" (less
+/// the margin). For a non-convex simple polygon it is the eroded kernel
+/// (the intersection of the edges' inner half-planes), still inside the
+/// polygon. A clockwise view is reversed first.
+fn erode_view(view: &[DVec2], side: f64) -> Option<Vec<DVec2>> {
+    if view.len() < 3 || view.iter().any(|p| !p.is_finite()) {
+        return None;
+    }
+    let area2 = signed_area2(view);
+    if area2 == 0.0 || !area2.is_finite() {
+        return None;
+    }
+    let ccw = area2 > 0.0;
+    let m = view.len();
+    let mut poly = vec![
+        DVec2::new(-1.0, -1.0),
+        DVec2::new(side + 1.0, -1.0),
+        DVec2::new(side + 1.0, side + 1.0),
+        DVec2::new(-1.0, side + 1.0),
+    ];
+    for e in 0..m {
+        let (p, q) = (view[e], view[(e + 1) % m]);
+        let (a, b) = if ccw { (p, q) } else { (q, p) };
+        let d = b - a;
+        // Interior to the left of a -> b.
+        poly = if d == DVec2::ZERO {
+            continue;
+        } else if d.x == 0.0 {
+            if d.y < 0.0 {
+                let c = a.x.ceil();
+                clip(&poly, |x| x.x - c)
+            } else {
+                let c = a.x.floor();
+                clip(&poly, |x| c - x.x)
+            }
+        } else if d.y == 0.0 {
+            if d.x > 0.0 {
+                let c = a.y.ceil();
+                clip(&poly, |x| x.y - c)
+            } else {
+                let c = a.y.floor();
+                clip(&poly, |x| c - x.y)
+            }
+        } else {
+            let normal = d.perp() / d.length();
+            let scale = a.abs().max_element().max(b.abs().max_element()) + side + 1.0;
+            let shift = 0.5 * (normal.x.abs() + normal.y.abs()) + SNAP_MARGIN + F64_ERROR * scale;
+            clip(&poly, |x| normal.dot(x - a) - shift)
+        };
+        if poly.len() < 3 {
+            return None;
+        }
+    }
+    (signed_area2(&poly) > 0.0).then_some(poly)
+}
+
+/// Occluders drawn together: same view count, pixel-disjoint rectangles.
+struct Batch {
+    views: usize,
+    members: Vec<usize>,
+    /// Occupied cells of a coarse grid over the map, one bit per cell.
+    cells: [u64; 64],
+}
+
+/// Groups occluders into batches, each drawn with `k + 1` draw calls.
+///
+/// Occluders are taken in decreasing value, and each goes into a batch
+/// after the last one holding an occluder it overlaps (on a coarse grid of
+/// at most 64 x 64 cells), so overlapping occluders are drawn in
+/// decreasing value: with `LessEqual`, the smaller value wins depth ties.
+/// Within a batch the rectangles (quads included) touch disjoint pixels,
+/// so their stencil counts cannot mix.
+fn make_batches(n: usize, prepared: &[Prepared]) -> Vec<Batch> {
+    let grid = n.min(64) as u32;
+    let cell = n as u32 / grid;
+    let mut order: Vec<usize> = (0..prepared.len()).collect();
+    order.sort_by(|&a, &b| prepared[b].value.total_cmp(&prepared[a].value));
+    let mut batches: Vec<Batch> = Vec::new();
+    for o in order {
+        let p = &prepared[o];
+        let [x0, y0, x1, y1] = p.rect;
+        let (cx0, cx1) = (x0 / cell, (x1 - 1) / cell);
+        let (cy0, cy1) = (y0 / cell, (y1 - 1) / cell);
+        let mask = (u64::MAX >> (63 - (cx1 - cx0))) << cx0;
+        let rows = cy0 as usize..=cy1 as usize;
+        let overlaps = |b: &Batch| b.cells[rows.clone()].iter().any(|r| r & mask != 0);
+        let mut target = None;
+        for (b, batch) in batches.iter().enumerate().rev().take(BATCH_SCAN) {
+            if overlaps(batch) {
+                break;
+            }
+            if batch.views == p.views.len() && batch.members.len() < MAX_BATCH {
+                target = Some(b);
+            }
+        }
+        let b = target.unwrap_or_else(|| {
+            batches.push(Batch {
+                views: p.views.len(),
+                members: Vec::new(),
+                cells: [0; 64],
+            });
+            batches.len() - 1
+        });
+        let batch = &mut batches[b];
+        batch.members.push(o);
+        for r in &mut batch.cells[rows] {
+            *r |= mask;
+        }
+    }
+    batches
+}
+
+/// One render pass's vertices and draws.
+struct Chunk {
+    vertices: Vec<[f32; 4]>,
+    batches: Vec<BatchDraws>,
+}
+
+/// A batch's vertex ranges: one per view index, then the quads.
+struct BatchDraws {
+    views: Vec<Range<u32>>,
+    quads: Range<u32>,
+}
+
+/// Lays out the vertices of all batches (NDC x, NDC y, depth, value),
+/// splitting them into render passes of at most `chunk_vertices` (a single
+/// larger batch gets a pass of its own).
+fn build_vertices(
+    n: usize,
+    prepared: &[Prepared],
+    batches: &[Batch],
+    chunk_vertices: usize,
+) -> Vec<Chunk> {
+    // Pixel x to NDC x, pixel y (row, downwards) to NDC y (upwards).
+    let scale = 2.0 / n as f64;
+    let ndc = |p: DVec2| [(p.x * scale - 1.0) as f32, (1.0 - p.y * scale) as f32];
+    let mut chunks = vec![Chunk {
+        vertices: Vec::new(),
+        batches: Vec::new(),
+    }];
+    for batch in batches {
+        let size: usize = batch
+            .members
+            .iter()
+            .map(|&o| {
+                6 + prepared[o]
+                    .views
+                    .iter()
+                    .map(|v| 3 * (v.len() - 2))
+                    .sum::<usize>()
+            })
+            .sum();
+        let last = chunks.last().expect("one chunk at least");
+        if !last.vertices.is_empty() && last.vertices.len() + size > chunk_vertices {
+            chunks.push(Chunk {
+                vertices: Vec::with_capacity(size),
+                batches: Vec::new(),
+            });
+        }
+        let chunk = chunks.last_mut().expect("one chunk at least");
+        let vertices = &mut chunk.vertices;
+        let mut views = Vec::with_capacity(batch.views);
+        for i in 0..batch.views {
+            let start = vertices.len() as u32;
+            for &o in &batch.members {
+                let view = &prepared[o].views[i];
+                let v0 = ndc(view[0]);
+                for w in view[1..].windows(2) {
+                    for p in [v0, ndc(w[0]), ndc(w[1])] {
+                        vertices.push([p[0], p[1], 0.0, 0.0]);
+                    }
+                }
+            }
+            views.push(start..vertices.len() as u32);
+        }
+        let start = vertices.len() as u32;
+        for &o in &batch.members {
+            let p = &prepared[o];
+            let [x0, y0, x1, y1] = p.rect.map(f64::from);
+            let z = depth_key(p.value);
+            let corner = |x, y| {
+                let q = ndc(DVec2::new(x, y));
+                [q[0], q[1], z, p.value]
+            };
+            let (a, b, c, d) = (
+                corner(x0, y0),
+                corner(x1, y0),
+                corner(x1, y1),
+                corner(x0, y1),
+            );
+            vertices.extend([a, b, c, a, c, d]);
+        }
+        chunk.batches.push(BatchDraws {
+            views,
+            quads: start..vertices.len() as u32,
+        });
+    }
+    chunks
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+    use rand_pcg::Pcg64;
+    use std::sync::OnceLock;
+    use std::time::Instant;
+
+    /// One rasteriser for all tests (opening a device takes a while); None
+    /// when there is no adapter, and the tests then skip.
+    fn gpu() -> Option<&'static GpuRasteriser> {
+        static GPU: OnceLock<Option<GpuRasteriser>> = OnceLock::new();
+        GPU.get_or_init(|| match GpuRasteriser::new() {
+            Ok(g) => {
+                eprintln!("oracle_gpu tests run on {g:?}");
+                Some(g)
+            }
+            Err(e) => {
+                // CI installs Mesa's CPU Vulkan driver and sets this, so
+                // that the GPU path is really tested there.
+                assert!(
+                    std::env::var_os("VIS5D_REQUIRE_GPU").is_none(),
+                    "VIS5D_REQUIRE_GPU is set but there is no GPU adapter: {e}"
+                );
+                eprintln!("oracle_gpu tests skipped: {e}");
+                None
+            }
+        })
+        .as_ref()
+    }
+
+    /// Exact reference: pixel (i, j) is covered by an occluder iff its four
+    /// corners are inside every view (closed convex polygons); the value is
+    /// the smallest Depth over covering occluders.
+    fn reference(n: usize, occluders: &[ProjectedOccluder]) -> Vec<f64> {
+        let mut map = vec![f64::INFINITY; n * n];
+        for o in occluders {
+            if o.views.is_empty() || o.depth.is_nan() {
+                continue;
+            }
+            let inside = |view: &[DVec2], p: DVec2| {
+                let s = signed_area2(view).signum();
+                (0..view.len()).all(|e| {
+                    let (a, b) = (view[e], view[(e + 1) % view.len()]);
+                    s * (b - a).perp_dot(p - a) >= 0.0
+                })
+            };
+            // Covered pixels lie within the first view's bounding box.
+            let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+            for &p in &o.views[0] {
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+            let range = |a: f64, b: f64| {
+                let a = a.floor().clamp(0.0, n as f64) as usize;
+                let b = b.ceil().clamp(0.0, n as f64) as usize;
+                a..b
+            };
+            for j in range(lo.y, hi.y) {
+                for i in range(lo.x, hi.x) {
+                    let corners = [(0, 0), (1, 0), (0, 1), (1, 1)]
+                        .map(|(dx, dy)| DVec2::new((i + dx) as f64, (j + dy) as f64));
+                    let covered = o.views.iter().all(|v| {
+                        v.len() >= 3
+                            && signed_area2(v) != 0.0
+                            && corners.iter().all(|&c| inside(v, c))
+                    });
+                    if covered {
+                        map[j * n + i] = map[j * n + i].min(o.depth);
+                    }
+                }
+            }
+        }
+        map
+    }
+
+    /// Convex hull, counter-clockwise, collinear points dropped.
+    fn hull(mut pts: Vec<DVec2>) -> Vec<DVec2> {
+        pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+        let mut h: Vec<DVec2> = Vec::new();
+        for pass in 0..2 {
+            let start = h.len();
+            let iter: Box<dyn Iterator<Item = &DVec2>> = if pass == 0 {
+                Box::new(pts.iter())
+            } else {
+                Box::new(pts.iter().rev())
+            };
+            for &p in iter {
+                while h.len() >= start + 2
+                    && (h[h.len() - 1] - h[h.len() - 2]).perp_dot(p - h[h.len() - 2]) <= 0.0
+                {
+                    h.pop();
+                }
+                h.push(p);
+            }
+            h.pop();
+        }
+        h
+    }
+
+    /// Random occluders: hulls of random points, 8 views translated by
+    /// small random offsets, random Depths of both signs.
+    fn random_occluders(rng: &mut Pcg64, n: usize, count: usize) -> Vec<ProjectedOccluder> {
+        let side = n as f64;
+        (0..count)
+            .map(|_| {
+                let centre = DVec2::new(
+                    rng.random_range(-0.1 * side..1.1 * side),
+                    rng.random_range(-0.1 * side..1.1 * side),
+                );
+                let radius = rng.random_range(0.04 * side..0.25 * side);
+                let points = (0..rng.random_range(3..12))
+                    .map(|_| {
+                        centre
+                            + DVec2::new(
+                                rng.random_range(-radius..radius),
+                                rng.random_range(-radius..radius),
+                            )
+                    })
+                    .collect();
+                let base = hull(points);
+                let jitter = 0.1 * radius;
+                let views = (0..8)
+                    .map(|_| {
+                        let t = DVec2::new(
+                            rng.random_range(-jitter..jitter),
+                            rng.random_range(-jitter..jitter),
+                        );
+                        base.iter().map(|&p| p + t).collect()
+                    })
+                    .collect();
+                ProjectedOccluder {
+                    views,
+                    depth: rng.random_range(-100.0..100.0),
+                }
+            })
+            .collect()
+    }
+
+    /// Compares a GPU map with the reference: panics on any unsound pixel
+    /// (written where no occluder covers it, below the smallest covering
+    /// Depth, or not any occluder's rounded Depth); returns (GPU-written
+    /// pixels, reference pixels, pixels holding exactly the rounded
+    /// reference value).
+    fn check_sound(
+        n: usize,
+        occluders: &[ProjectedOccluder],
+        gpu: &[f64],
+        exact: &[f64],
+    ) -> (usize, usize, usize) {
+        assert_eq!(gpu.len(), n * n);
+        let values: std::collections::HashSet<u64> = occluders
+            .iter()
+            .map(|o| f64::from(f32_at_least(o.depth)).to_bits())
+            .collect();
+        let (mut written, mut expected, mut tight) = (0, 0, 0);
+        for (k, (&g, &r)) in gpu.iter().zip(exact).enumerate() {
+            let (i, j) = (k % n, k / n);
+            if r != f64::INFINITY {
+                expected += 1;
+            }
+            if g == f64::INFINITY {
+                continue;
+            }
+            written += 1;
+            assert!(
+                r != f64::INFINITY,
+                "pixel ({i}, {j}) written with {g} but no occluder covers it"
+            );
+            assert!(g >= r, "pixel ({i}, {j}) holds {g} < true depth {r}");
+            assert!(values.contains(&g.to_bits()), "pixel ({i}, {j}) holds {g}");
+            if g == f64::from(f32_at_least(r)) {
+                tight += 1;
+            }
+        }
+        (written, expected, tight)
+    }
+
+    fn square(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<DVec2> {
+        vec![
+            DVec2::new(x0, y0),
+            DVec2::new(x1, y0),
+            DVec2::new(x1, y1),
+            DVec2::new(x0, y1),
+        ]
+    }
+
+    #[test]
+    fn random_occluders_are_sound_and_useful() {
+        let Some(gpu) = gpu() else { return };
+        let mut rng = Pcg64::seed_from_u64(5);
+        for (n, count, maps) in [(64, 30, 6), (256, 60, 3)] {
+            let (mut written, mut expected, mut tight) = (0, 0, 0);
+            for _ in 0..maps {
+                let occluders = random_occluders(&mut rng, n, count);
+                let map = gpu.rasterise(n, &occluders).unwrap();
+                let (w, e, t) = check_sound(n, &occluders, &map, &reference(n, &occluders));
+                written += w;
+                expected += e;
+                tight += t;
+            }
+            let ratio = written as f64 / expected as f64;
+            eprintln!(
+                "n = {n}: GPU wrote {written} of {expected} reference pixels ({ratio:.4}), \
+                 {tight} with the exact smallest value"
+            );
+            assert!(
+                expected > 1000,
+                "too few covered pixels to judge: {expected}"
+            );
+            assert!(
+                ratio >= 0.95,
+                "GPU wrote only {ratio:.4} of the reference pixels"
+            );
+        }
+    }
+
+    #[test]
+    fn axis_aligned_squares_on_pixel_edges_are_exact() {
+        let Some(gpu) = gpu() else { return };
+        let n = 32;
+        let occluders = vec![
+            ProjectedOccluder {
+                views: vec![square(4.0, 6.0, 12.0, 9.0); 8],
+                depth: 3.0,
+            },
+            // Views offset by whole pixels: the intersection is [21, 29] x [2, 30].
+            ProjectedOccluder {
+                views: (0..8)
+                    .map(|i| square(20.0 + f64::from(i % 2), 2.0, 29.0, 30.0))
+                    .collect(),
+                depth: -7.5,
+            },
+            // A 1x1 pixel square, clockwise.
+            ProjectedOccluder {
+                views: vec![square(0.0, 31.0, 1.0, 32.0).into_iter().rev().collect(); 8],
+                depth: 0.25,
+            },
+            // Fractional edges: pixels 2..=4 by 13..=14 only.
+            ProjectedOccluder {
+                views: vec![square(1.9, 12.5, 5.0, 15.2); 8],
+                depth: 1.0,
+            },
+        ];
+        let map = gpu.rasterise(n, &occluders).unwrap();
+        let exact = reference(n, &occluders);
+        let (written, expected, tight) = check_sound(n, &occluders, &map, &exact);
+        assert_eq!(expected, 8 * 3 + 8 * 28 + 1 + 3 * 2);
+        assert_eq!(written, expected, "axis-aligned squares must be exact");
+        assert_eq!(tight, expected);
+        assert_eq!(map[31 * n], 0.25);
+        assert_eq!(map[13 * n + 2], 1.0);
+        assert_eq!(map[12 * n + 2], f64::INFINITY);
+    }
+
+    #[test]
+    fn views_that_do_not_all_overlap_write_nothing() {
+        let Some(gpu) = gpu() else { return };
+        let n = 64;
+        // Seven views share a large square; the eighth lies elsewhere.
+        let mut views = vec![square(4.0, 4.0, 40.0, 40.0); 7];
+        views.push(square(44.0, 44.0, 60.0, 60.0));
+        // Two views that overlap by less than a pixel.
+        let thin = vec![
+            square(4.0, 44.0, 20.5, 60.0),
+            square(19.7, 44.0, 36.0, 60.0),
+        ];
+        let occluders = [
+            ProjectedOccluder { views, depth: 1.0 },
+            ProjectedOccluder {
+                views: thin,
+                depth: 2.0,
+            },
+        ];
+        let map = gpu.rasterise(n, &occluders).unwrap();
+        assert!(map.iter().all(|&v| v == f64::INFINITY));
+        // And the stencil was reset: a later occluder of the same map is
+        // drawn normally.
+        let mut more = occluders.to_vec();
+        more.push(ProjectedOccluder {
+            views: vec![square(8.0, 8.0, 16.0, 16.0); 8],
+            depth: 4.0,
+        });
+        let map = gpu.rasterise(n, &more).unwrap();
+        let (written, expected, tight) = check_sound(n, &more, &map, &reference(n, &more));
+        assert_eq!((written, expected, tight), (64, 64, 64));
+    }
+
+    #[test]
+    fn overlapping_occluders_keep_the_smallest_depth() {
+        let Some(gpu) = gpu() else { return };
+        let n = 128;
+        let a = square(10.0, 10.0, 80.0, 80.0);
+        let tri = vec![
+            DVec2::new(30.3, 20.1),
+            DVec2::new(110.7, 50.2),
+            DVec2::new(40.9, 120.4),
+        ];
+        let mut occluders = vec![
+            ProjectedOccluder {
+                views: vec![a.clone(); 8],
+                depth: 5.0,
+            },
+            ProjectedOccluder {
+                views: vec![tri.clone(); 8],
+                depth: 2.0,
+            },
+            // Nearly equal depths (same depth key) in both orders: the
+            // smaller must win whatever the depth buffer's precision.
+            ProjectedOccluder {
+                views: vec![square(50.0, 5.0, 70.0, 30.0); 8],
+                depth: 1.000_000_1,
+            },
+            ProjectedOccluder {
+                views: vec![square(60.0, 10.0, 75.0, 40.0); 8],
+                depth: 1.000_000_3,
+            },
+            // A Depth between f32 values: stored rounded up.
+            ProjectedOccluder {
+                views: vec![square(0.0, 100.0, 20.0, 128.0); 8],
+                depth: -0.1,
+            },
+            ProjectedOccluder {
+                views: vec![square(0.0, 90.0, 10.0, 128.0); 8],
+                depth: f64::NEG_INFINITY,
+            },
+        ];
+        // Many layers over one spot, in random order.
+        let mut rng = Pcg64::seed_from_u64(9);
+        for _ in 0..40 {
+            occluders.push(ProjectedOccluder {
+                views: vec![square(90.0, 90.0, 120.0, 120.0); 8],
+                depth: rng.random_range(3.0..9.0),
+            });
+        }
+        let map = gpu.rasterise(n, &occluders).unwrap();
+        let exact = reference(n, &occluders);
+        let (written, expected, _) = check_sound(n, &occluders, &map, &exact);
+        assert!(written as f64 >= 0.97 * expected as f64);
+        // Away from the triangle's slanted edges every value is exact.
+        for j in 85..128 {
+            for i in 85..128 {
+                let want = f64::from(f32_at_least(exact[j * n + i]));
+                assert_eq!(map[j * n + i], want, "pixel ({i}, {j})");
+            }
+        }
+        assert_eq!(map[50 * n + 50], 2.0);
+        assert_eq!(map[15 * n + 20], 5.0);
+        assert_eq!(map[20 * n + 65], f64::from(f32_at_least(1.000_000_1)));
+        assert_eq!(map[110 * n + 5], f64::NEG_INFINITY);
+        assert_eq!(map[105 * n + 15], f64::from(f32_at_least(-0.1)));
+        assert!(map[105 * n + 15] > -0.1);
+    }
+
+    #[test]
+    fn degenerate_polygons_write_nothing() {
+        let Some(gpu) = gpu() else { return };
+        let n = 64;
+        let tiny = vec![
+            DVec2::new(10.2, 10.2),
+            DVec2::new(10.9, 10.3),
+            DVec2::new(10.5, 10.8),
+        ];
+        let sliver = vec![
+            DVec2::new(5.0, 5.0),
+            DVec2::new(60.0, 6.0),
+            DVec2::new(5.0, 5.9),
+        ];
+        let flat = vec![
+            DVec2::new(1.0, 1.0),
+            DVec2::new(30.0, 30.0),
+            DVec2::new(50.0, 50.0),
+        ];
+        let two = vec![DVec2::new(1.0, 1.0), DVec2::new(30.0, 30.0)];
+        let nan = vec![
+            DVec2::new(1.0, 1.0),
+            DVec2::new(f64::NAN, 30.0),
+            DVec2::new(1.0, 50.0),
+        ];
+        let mut occluders: Vec<ProjectedOccluder> = [tiny, sliver, flat, two, nan]
+            .into_iter()
+            .map(|v| ProjectedOccluder {
+                views: vec![v; 8],
+                depth: 1.0,
+            })
+            .collect();
+        // A good view with one degenerate one, no views, a NaN depth,
+        // an occluder wholly outside the map.
+        let mut views = vec![square(2.0, 2.0, 40.0, 40.0); 7];
+        views.push(vec![DVec2::new(3.0, 3.0); 4]);
+        occluders.push(ProjectedOccluder { views, depth: 1.0 });
+        occluders.push(ProjectedOccluder {
+            views: Vec::new(),
+            depth: 1.0,
+        });
+        occluders.push(ProjectedOccluder {
+            views: vec![square(2.0, 2.0, 40.0, 40.0); 8],
+            depth: f64::NAN,
+        });
+        occluders.push(ProjectedOccluder {
+            views: vec![square(70.0, 2.0, 90.0, 40.0); 8],
+            depth: 1.0,
+        });
+        let map = gpu.rasterise(n, &occluders).unwrap();
+        assert!(map.iter().all(|&v| v == f64::INFINITY));
+        // Nothing at all, and the smallest map.
+        assert!(
+            gpu.rasterise(n, &[])
+                .unwrap()
+                .iter()
+                .all(|v| v.is_infinite())
+        );
+        let whole = [ProjectedOccluder {
+            views: vec![square(-5.0, -5.0, 5.0, 5.0); 8],
+            depth: 2.0,
+        }];
+        assert_eq!(gpu.rasterise(1, &whole).unwrap(), vec![2.0]);
+    }
+
+    #[test]
+    fn rasteriser_is_shared_across_threads() {
+        fn send_sync<T: Send + Sync>() {}
+        send_sync::<GpuRasteriser>();
+        send_sync::<GpuError>();
+        let Some(gpu) = gpu() else { return };
+        let occluders = [ProjectedOccluder {
+            views: vec![square(1.0, 1.0, 5.0, 5.0); 8],
+            depth: 1.5,
+        }];
+        let maps: Vec<Vec<f64>> = std::thread::scope(|s| {
+            let jobs: Vec<_> = (0..4)
+                .map(|_| s.spawn(|| gpu.rasterise(8, &occluders).unwrap()))
+                .collect();
+            jobs.into_iter().map(|j| j.join().unwrap()).collect()
+        });
+        assert!(maps.iter().all(|m| m == &maps[0]));
+        assert_eq!(maps[0].iter().filter(|&&v| v == 1.5).count(), 16);
+    }
+
+    #[test]
+    fn invalid_requests_are_errors() {
+        let Some(gpu) = gpu() else { return };
+        assert!(matches!(
+            gpu.rasterise(48, &[]),
+            Err(GpuError::InvalidInput(_))
+        ));
+        assert!(matches!(
+            gpu.rasterise(8192, &[]),
+            Err(GpuError::InvalidInput(_))
+        ));
+        assert!(matches!(
+            gpu.rasterise(0, &[]),
+            Err(GpuError::InvalidInput(_))
+        ));
+        let many = [ProjectedOccluder {
+            views: vec![square(0.0, 0.0, 4.0, 4.0); 256],
+            depth: 1.0,
+        }];
+        let e = gpu.rasterise(8, &many).unwrap_err();
+        assert!(e.to_string().contains("256 views"), "{e}");
+    }
+
+    #[test]
+    fn erosion_matches_the_pixel_square_rule() {
+        // CPU only: a pixel centre inside the eroded polygon has its square
+        // inside the view, for random slanted triangles.
+        let mut rng = Pcg64::seed_from_u64(3);
+        for _ in 0..200 {
+            let pts = (0..3)
+                .map(|_| DVec2::new(rng.random_range(0.0..32.0), rng.random_range(0.0..32.0)))
+                .collect();
+            let view = hull(pts);
+            let Some(eroded) = erode_view(&view, 32.0) else {
+                continue;
+            };
+            let one = [ProjectedOccluder {
+                views: vec![view.clone()],
+                depth: 0.0,
+            }];
+            let exact = reference(32, &one);
+            for j in 0..32 {
+                for i in 0..32 {
+                    let c = DVec2::new(i as f64 + 0.5, j as f64 + 0.5);
+                    let inside = (0..eroded.len()).all(|e| {
+                        let (a, b) = (eroded[e], eroded[(e + 1) % eroded.len()]);
+                        (b - a).perp_dot(c - a) >= 0.0
+                    });
+                    if inside {
+                        assert!(exact[j * 32 + i] == 0.0, "{view:?}: pixel ({i}, {j})");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn thousand_occluders_at_256() {
+        let Some(gpu) = gpu() else { return };
+        let n = 256;
+        let mut rng = Pcg64::seed_from_u64(11);
+        // Smaller occluders than the soundness test, as a scene's would be.
+        let occluders: Vec<ProjectedOccluder> = random_occluders(&mut rng, n, 1000)
+            .into_iter()
+            .map(|mut o| {
+                let c = o.views[0][0];
+                for v in &mut o.views {
+                    for p in v.iter_mut() {
+                        *p = c + (*p - c) * 0.4;
+                    }
+                }
+                o
+            })
+            .collect();
+        let map = gpu.rasterise(n, &occluders).unwrap();
+        // Many render passes (each loading the last one's buffers) give the
+        // same map.
+        assert_eq!(gpu.rasterise_in_passes(n, &occluders, 2000).unwrap(), map);
+        let start = Instant::now();
+        let runs = 3;
+        for _ in 0..runs {
+            assert_eq!(gpu.rasterise(n, &occluders).unwrap(), map);
+        }
+        let per_map = start.elapsed() / runs;
+        let t = Instant::now();
+        let prepared = prepare(n, &occluders);
+        let batches = make_batches(n, &prepared);
+        let chunks = build_vertices(n, &prepared, &batches, CHUNK_VERTICES);
+        let cpu_side = t.elapsed();
+        eprintln!(
+            "1000 occluders at n = {n}: {per_map:?} per map on {} ({} drawn, {} batches, \
+             {} vertices; erosion and batching {cpu_side:?})",
+            gpu.adapter_name(),
+            prepared.len(),
+            batches.len(),
+            chunks[0].vertices.len(),
+        );
+        let (written, expected, tight) =
+            check_sound(n, &occluders, &map, &reference(n, &occluders));
+        eprintln!("  wrote {written} of {expected} reference pixels, {tight} exact");
+        assert!(written as f64 >= 0.9 * expected as f64);
+    }
+
+    /// Many maps of many small, thin and large occluders: a longer
+    /// soundness hunt (`cargo test --release -- --ignored oracle_gpu`).
+    #[test]
+    #[ignore = "slow: a soundness stress run"]
+    fn stress_soundness() {
+        let Some(gpu) = gpu() else { return };
+        let mut rng = Pcg64::seed_from_u64(77);
+        let (mut written, mut expected) = (0, 0);
+        for round in 0..300 {
+            let n = [16, 64, 128, 1024][round % 4];
+            let mut occluders = random_occluders(&mut rng, n, 40);
+            // Shrink some to a few pixels, where margins matter most.
+            for o in occluders.iter_mut().step_by(2) {
+                let s = rng.random_range(0.02..0.3);
+                let c = o.views[0][0];
+                for v in &mut o.views {
+                    for p in v.iter_mut() {
+                        *p = c + (*p - c) * s;
+                    }
+                }
+            }
+            let map = gpu.rasterise(n, &occluders).unwrap();
+            let (w, e, _) = check_sound(n, &occluders, &map, &reference(n, &occluders));
+            written += w;
+            expected += e;
+        }
+        eprintln!("stress: wrote {written} of {expected} reference pixels");
+    }
+
+    #[test]
+    fn large_maps_and_far_vertices() {
+        let Some(gpu) = gpu() else { return };
+        // A triangle reaching 1e7 pixels away, seen from two corners.
+        let n = 1024;
+        let far = vec![
+            DVec2::new(-1e7, 500.25),
+            DVec2::new(1e7, 520.75),
+            DVec2::new(3.0e5, 2e7),
+        ];
+        let shifted = far.iter().map(|&p| p + DVec2::new(0.0, -3.5)).collect();
+        let occluders = [ProjectedOccluder {
+            views: vec![far, shifted],
+            depth: 0.5,
+        }];
+        let map = gpu.rasterise(n, &occluders).unwrap();
+        let (written, expected, tight) =
+            check_sound(n, &occluders, &map, &reference(n, &occluders));
+        assert!(expected > 500_000 && written as f64 >= 0.99 * expected as f64);
+        assert_eq!(tight, written);
+        // The largest map: its last row and column are reachable.
+        let n = 4096;
+        let corner = [ProjectedOccluder {
+            views: vec![square(4090.0, 4093.0, 4096.0, 4096.0); 8],
+            depth: 8.0,
+        }];
+        let map = gpu.rasterise(n, &corner).unwrap();
+        let (written, expected, _) = check_sound(n, &corner, &map, &reference(n, &corner));
+        assert_eq!((written, expected), (18, 18));
+        assert_eq!(map[n * n - 1], 8.0);
+    }
+
+    #[test]
+    fn depth24_stencil8_gives_the_same_maps() {
+        if gpu().is_none() {
+            return;
+        }
+        let gpu24 = GpuRasteriser::open(false).unwrap();
+        assert_eq!(gpu24.depth_format, wgpu::TextureFormat::Depth24PlusStencil8);
+        let mut rng = Pcg64::seed_from_u64(21);
+        let n = 128;
+        let mut occluders = random_occluders(&mut rng, n, 40);
+        // Depths closer than the 24-bit depth buffer resolves.
+        for (k, o) in occluders.iter_mut().enumerate() {
+            o.depth = 10.0 + 1e-6 * (k % 7) as f64;
+        }
+        let map = gpu24.rasterise(n, &occluders).unwrap();
+        check_sound(n, &occluders, &map, &reference(n, &occluders));
+        assert_eq!(map, gpu().unwrap().rasterise(n, &occluders).unwrap());
+    }
+}
