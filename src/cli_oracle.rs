@@ -259,6 +259,10 @@ pub fn oracle(args: &OracleArgs) -> Result<()> {
     Ok(())
 }
 
+/// A missed object's visible fraction is only summarised when this many
+/// aimed rays were accepted (a fraction from 1 ray of 1 says little).
+const MIN_RAYS_FOR_FRACTION: u32 = 32;
+
 #[derive(Args, Debug)]
 pub struct CheckArgs {
     /// The scene file (.obj, .gltf or .glb) the tree was built for.
@@ -404,6 +408,7 @@ pub fn check(args: &CheckArgs) -> Result<()> {
         confirmed_misses: suspects.iter().filter(|s| s.confirmed()).count(),
         max_missed_fraction: suspects
             .iter()
+            .filter(|s| s.rays >= MIN_RAYS_FOR_FRACTION)
             .map(|s| s.visible_fraction())
             .fold(0.0, f64::max),
         mean_oracle_all_directions: mean(&|l| l.oracle_all),
@@ -484,10 +489,11 @@ pub fn check(args: &CheckArgs) -> Result<()> {
         )?;
         writeln!(
             out,
-            "  suspects         {} (the oracle keeps, the leaf lacks): {} confirmed misses (largest visible fraction {:.4}), {} not found",
+            "  suspects         {} (the oracle keeps, the leaf lacks): {} confirmed misses (largest visible fraction {:.4} where {}+ aimed rays were accepted), {} not found",
             json.suspects,
             json.confirmed_misses,
             json.max_missed_fraction,
+            MIN_RAYS_FOR_FRACTION,
             json.suspects - json.confirmed_misses
         )?;
         writeln!(out, "  violations       {}", json.violations)?;

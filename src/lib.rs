@@ -74,7 +74,8 @@
 //!
 //! - default (`cli`): the `vis5d` command-line tool and everything below.
 //! - `builder`: the preprocess: scene loaders, procedural scenes, tracer,
-//!   SPRT, tree builder.
+//!   SPRT, tree builder, the oracle on the CPU.
+//! - `gpu`: the oracle's wgpu rasteriser ([`oracle::oracle_gpu`]).
 //! - none (`default-features = false`): the runtime side only, free of
 //!   obvhs, rayon, gltf, tobj, statrs and clap.
 

@@ -7,9 +7,13 @@
 //! rays "from a random point in the cell to a random point on the object"),
 //! so it must be exact, not approximately right:
 //! - the result is the triangle with the smallest `t` in `[tmin, tmax]`, as
-//!   computed by obvhs's Möller-Trumbore test ([`brute_force_closest_hit`]
-//!   runs that same test over every triangle, and the tests check the two
-//!   agree bit for bit on many random rays);
+//!   computed by a watertight ray-triangle test (Woop, Benthin and Wald
+//!   2013; [`brute_force_closest_hit`] runs that same test over every
+//!   triangle, and the tests check the two agree bit for bit on many random
+//!   rays). obvhs's own Möller-Trumbore test is not watertight: rays
+//!   through the shared edge of two triangles could pass between them (a
+//!   review found 70% of rays along a quad's diagonal did), and a ray that
+//!   slips through a wall reports what lies behind it;
 //! - ties (a ray through a shared edge or vertex, coplanar overlaps) go to
 //!   the lowest triangle index, so the answer does not depend on the BVH's
 //!   layout or traversal order.
@@ -128,6 +132,84 @@ fn rounding_scale(b: Aabb) -> f32 {
 /// (largest component) near `2^e`: 2^-20 of the scene's rounding scale.
 fn direction_exponent(b: Aabb) -> i32 {
     exponent(rounding_scale(b)) - 20
+}
+
+/// A ray prepared for the watertight triangle test (Woop, Benthin and Wald,
+/// *Watertight ray/triangle intersection*, JCGT 2013): the axes permuted so
+/// that `z` is the direction's largest component (`x`, `y` swapped when it
+/// is negative, keeping the winding), and the shear that maps the ray onto
+/// the `z` axis. A triangle's corners, sheared into the ray's frame, give
+/// three 2D edge functions; two triangles sharing an edge compute that
+/// edge's function from the same two corners, so exactly, with opposite
+/// signs: no ray passes between them.
+struct Shear {
+    k: [usize; 3],
+    s: [f32; 3],
+    origin: Vec3,
+}
+
+impl Shear {
+    fn new(r: &obvhs::ray::Ray) -> Self {
+        let d: Vec3 = r.direction.into();
+        let a = d.abs();
+        let kz = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        Self {
+            k: [kx, ky, kz],
+            s: [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]],
+            origin: r.origin.into(),
+        }
+    }
+
+    /// The hit's `t` in `[tmin, tmax]` (two-sided), or +inf.
+    #[inline]
+    fn intersect(&self, t: &BvhTriangle, tmin: f32, tmax: f32) -> f32 {
+        let [kx, ky, kz] = self.k;
+        let [sx, sy, sz] = self.s;
+        let a = Vec3::from(t.v0) - self.origin;
+        let b = Vec3::from(t.v1) - self.origin;
+        let c = Vec3::from(t.v2) - self.origin;
+        let (ax, ay) = (a[kx] - sx * a[kz], a[ky] - sy * a[kz]);
+        let (bx, by) = (b[kx] - sx * b[kz], b[ky] - sy * b[kz]);
+        let (cx, cy) = (c[kx] - sx * c[kz], c[ky] - sy * c[kz]);
+        let mut u = cx * by - cy * bx;
+        let mut v = ax * cy - ay * cx;
+        let mut w = bx * ay - by * ax;
+        if u == 0.0 || v == 0.0 || w == 0.0 {
+            // On an edge to f32 precision: decide in f64 (products of f32
+            // are exact there), as the paper does.
+            let e = |px: f32, py: f32, qx: f32, qy: f32| {
+                (qx as f64 * py as f64 - qy as f64 * px as f64) as f32
+            };
+            u = e(bx, by, cx, cy);
+            v = e(cx, cy, ax, ay);
+            w = e(ax, ay, bx, by);
+        }
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return f32::INFINITY;
+        }
+        let det = u + v + w;
+        if det == 0.0 {
+            return f32::INFINITY;
+        }
+        let tt = u * (sz * a[kz]) + v * (sz * b[kz]) + w * (sz * c[kz]);
+        let (tt, det) = if det < 0.0 { (-tt, -det) } else { (tt, det) };
+        let t_hit = tt / det;
+        if t_hit >= tmin && t_hit <= tmax {
+            t_hit
+        } else {
+            f32::INFINITY
+        }
+    }
 }
 
 /// A ray as obvhs traces it, with `t_factor` to turn its `t` back into
@@ -279,8 +361,9 @@ impl Tracer {
         let mut best_t = f32::INFINITY;
         let mut best = u32::MAX;
         let mut hit = RayHit::none();
+        let shear = Shear::new(&scaled.ray);
         self.bvh.ray_traverse(scaled.ray, &mut hit, |r, i| {
-            let t = self.tris[i].intersect(r);
+            let t = shear.intersect(&self.tris[i], r.tmin, r.tmax);
             if t < f32::INFINITY && (t < best_t || (t == best_t && self.ids[i] < best)) {
                 best_t = t;
                 best = self.ids[i];
@@ -331,9 +414,10 @@ pub fn brute_force_closest_hit(scene: &Scene, ray: &Ray) -> Option<Hit> {
     }
     let scaled = ScaledRay::new(ray, direction_exponent(scene.bounds()));
     let r = scaled.ray;
+    let shear = Shear::new(&r);
     let mut best: Option<(u32, f32)> = None;
     for (i, tri) in scene.triangles().iter().enumerate() {
-        let t = to_bvh_triangle(tri).intersect(&r);
+        let t = shear.intersect(&to_bvh_triangle(tri), r.tmin, r.tmax);
         if t < best.map_or(f32::INFINITY, |b| b.1) {
             best = Some((i as u32, t));
         }
@@ -408,6 +492,73 @@ mod tests {
         ] {
             assert_eq!(tracer.closest_hit(&r), None, "{r:?}");
             assert_eq!(brute_force_closest_hit(&s, &r), None, "{r:?}");
+        }
+    }
+
+    /// Rays through the shared edges and corners of a mesh never pass
+    /// between its triangles (obvhs's Moller-Trumbore test let 70% of the
+    /// rays along a quad's diagonal through).
+    #[test]
+    fn rays_through_shared_edges_do_not_leak() {
+        use crate::scene::procedural::shapes::push_box;
+        use rand::{RngExt, SeedableRng};
+        let mut b = SceneBuilder::new(SceneFormat::Procedural);
+        b.begin_object("wall");
+        let p = |y: f32, z: f32| Vec3::new(2.0, y, z);
+        for t in [
+            [p(-128.0, -128.0), p(128.0, -128.0), p(128.0, 128.0)],
+            [p(-128.0, -128.0), p(128.0, 128.0), p(-128.0, 128.0)],
+        ] {
+            b.push_triangle(t).unwrap();
+        }
+        b.begin_object("box");
+        let mut tris = Vec::new();
+        push_box(
+            &mut tris,
+            Vec3::new(5.0, -0.3, -0.7),
+            Vec3::new(6.0, 0.9, 0.4),
+        );
+        for t in tris {
+            b.push_triangle(t).unwrap();
+        }
+        let scene = b.finish(Path::new("leak")).unwrap();
+        let tracer = Tracer::new(&scene);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        for _ in 0..20_000 {
+            // Along +x through a point of the diagonal y = z.
+            let y: f32 = rng.random_range(-0.5..0.5);
+            let r = Ray::new(Vec3::new(-9.5, y, y), Vec3::X);
+            assert_eq!(tracer.closest_hit(&r).map(|h| h.object), Some(0), "{r:?}");
+            // From a random point to a random point of the diagonal.
+            let o = Vec3::new(
+                -10.0 + rng.random::<f32>(),
+                rng.random_range(-0.5..0.5),
+                rng.random_range(-0.5..0.5),
+            );
+            let d = Vec3::new(2.0, y, y) - o;
+            let r = Ray::new(o, d);
+            assert_eq!(tracer.closest_hit(&r).map(|h| h.object), Some(0), "{r:?}");
+        }
+        // Aimed at the box's edges and corners from outside: always the box.
+        let corners: Vec<Vec3> = (0..8)
+            .map(|i| {
+                Vec3::new(
+                    if i & 1 == 0 { 5.0 } else { 6.0 },
+                    if i & 2 == 0 { -0.3 } else { 0.9 },
+                    if i & 4 == 0 { -0.7 } else { 0.4 },
+                )
+            })
+            .collect();
+        for _ in 0..20_000 {
+            let (i, j) = (rng.random_range(0..8), rng.random_range(0..8));
+            let q = corners[i].lerp(corners[j], rng.random::<f32>());
+            let o = Vec3::new(5.5, 0.3, -0.15) + (q - Vec3::new(5.5, 0.3, -0.15)) * 3.0;
+            let r = Ray::new(o, q - o);
+            if let Some(h) = tracer.closest_hit(&r) {
+                assert_eq!(h.object, 1, "{r:?}");
+            } else {
+                panic!("leaked through the box: {r:?}");
+            }
         }
     }
 }

@@ -56,7 +56,7 @@ use crate::scene::Scene;
 use oracle_occluders::{Occluder, OccluderCounts, SlicedSolid};
 use oracle_plane::{DepthMap, ProjectedOccluder, cpu_rasterise};
 use oracle_project::{
-    Frame, clip_below, corners, improved_rect, occludee_rect, occluder_views, project,
+    Frame, clip_above, clip_below, corners, improved_rect, occludee_rect, occluder_views, project,
 };
 
 /// Settings of the oracle.
@@ -259,6 +259,17 @@ impl<'a> Oracle<'a> {
     ) -> CellReport {
         let objects = self.scene.objects().len();
         let (cmin, cmax) = (cell.min.as_dvec3(), cell.max.as_dvec3());
+        if !(cmin.is_finite() && cmax.is_finite() && cmin.cmple(cmax).all()) {
+            // Not a box (NaN, infinite, inside out): nothing is proved.
+            return CellReport {
+                visible: ObjectSet::full(objects),
+                hidden_by_parent: 0,
+                touching: objects,
+                planes: Vec::new(),
+                times: CellTimes::default(),
+            };
+        }
+        let slack = self.slack(cmin, cmax);
         let mut times = CellTimes::default();
         let mut hidden = ObjectSet::new(objects);
         let mut hidden_by_parent = 0;
@@ -287,7 +298,7 @@ impl<'a> Oracle<'a> {
             let (lmin, lmax) = frame.local_box(cmin, cmax);
             let test = |qmin: DVec3, qmax: DVec3| {
                 let (a, b) = frame.local_box(qmin, qmax);
-                box_hidden(map, lmin, lmax, a, b, *wp)
+                box_hidden(map, lmin, lmax, a, b, *wp, slack)
             };
             self.hierarchy.hidden(&test, &mut hidden);
             planes[k].hidden = hidden.count() - before;
@@ -303,7 +314,7 @@ impl<'a> Oracle<'a> {
                 touching += 1;
                 continue;
             }
-            if pieces_hidden(&maps, cmin, cmax, qmin, qmax) {
+            if pieces_hidden(&maps, cmin, cmax, qmin, qmax, slack) {
                 hidden.insert(i);
             }
         }
@@ -447,7 +458,7 @@ impl<'a> Oracle<'a> {
             let mut hidden = ObjectSet::new(self.scene.objects().len());
             let test = |qmin: DVec3, qmax: DVec3| {
                 let (a, b) = frame.local_box(qmin, qmax);
-                box_hidden(&map, lmin, lmax, a, b, wp)
+                box_hidden(&map, lmin, lmax, a, b, wp, self.slack(cmin, cmax))
             };
             self.hierarchy.hidden(&test, &mut hidden);
             scored.push((hidden, filled, wp));
@@ -573,6 +584,18 @@ impl<'a> Oracle<'a> {
         count
     }
 
+    /// How far behind the occluders an occludee must be to be hidden: the
+    /// rounding of the f32 ray tracer the oracle is checked against, 8 ulps
+    /// of the size of the scene and the cell together (diagonal plus
+    /// largest coordinate). Closer than that, the tracer may report either
+    /// hit first (a review found occludees one ulp behind a wall "hit").
+    fn slack(&self, cmin: DVec3, cmax: DVec3) -> f64 {
+        let b = self.scene.bounds();
+        let (lo, hi) = (b.min.as_dvec3().min(cmin), b.max.as_dvec3().max(cmax));
+        let scale = (hi - lo).length() + lo.abs().max(hi.abs()).max_element();
+        8.0 * f32::EPSILON as f64 * scale
+    }
+
     /// The plane rectangle at `wp`.
     fn plane_rect(&self, lmin: DVec3, lmax: DVec3, wp: f64) -> (DVec2, DVec2) {
         let grow = self.params.extension * (wp - lmax.z);
@@ -611,7 +634,14 @@ impl<'a> Oracle<'a> {
             let o = &self.occluders[i];
             points.clear();
             points.extend(o.points.iter().map(|&p| frame.local(p)));
-            let Some(clipped) = clip_below(&points, wp) else {
+            // Keep the part on the cell's side of the plane, and away from
+            // the cell's face by a millionth of the plane's depth: a corner
+            // almost on the face projects from the corners on the face to
+            // near infinity, where clipping rounds away whole edges (a
+            // review's counterexample). A convex part of a convex occluder
+            // is still one.
+            let near = lmax.z + 1e-6 * (wp - lmin.z);
+            let Some(clipped) = clip_below(&points, wp).and_then(|p| clip_above(&p, near)) else {
                 continue;
             };
             let depth = clipped
@@ -621,6 +651,15 @@ impl<'a> Oracle<'a> {
                 - wp;
             let mut views = occluder_views(&clipped, eyes, wp);
             if views.iter().any(|v| v.len() < 3) {
+                continue;
+            }
+            // A safety net against the same: views reaching 1e8 pixels
+            // away are dropped.
+            let far = 1e8 * pixel.max_element();
+            if views.iter().flatten().any(|p| {
+                !(*p - rmin).abs().max_element().is_finite()
+                    || (*p - rmin).abs().max_element() >= far
+            }) {
                 continue;
             }
             // Off the map entirely: useless.
@@ -645,11 +684,22 @@ impl<'a> Oracle<'a> {
 
 /// Whether the box `[qmin, qmax]` (frame coordinates) is proved hidden on
 /// the plane `w = wp` whose Depth Map is `map`, from the cell `[lmin, lmax]`.
-fn box_hidden(map: &DepthMap, lmin: DVec3, lmax: DVec3, qmin: DVec3, qmax: DVec3, wp: f64) -> bool {
+#[allow(clippy::too_many_arguments)]
+fn box_hidden(
+    map: &DepthMap,
+    lmin: DVec3,
+    lmax: DVec3,
+    qmin: DVec3,
+    qmax: DVec3,
+    wp: f64,
+    slack: f64,
+) -> bool {
     if qmin.z <= lmax.z {
         return false;
     }
-    let depth = qmin.z - wp;
+    // Behind the occluders by more than the tracer's rounding: an f32 ray
+    // cannot then order the two hits the other way.
+    let depth = qmin.z - wp - slack;
     let (lo, hi) = occludee_rect(lmin, lmax, qmin, qmax, wp);
     if map.hides(lo, hi, depth) {
         return true;
@@ -673,6 +723,7 @@ fn pieces_hidden(
     cmax: DVec3,
     qmin: DVec3,
     qmax: DVec3,
+    slack: f64,
 ) -> bool {
     let hair = 1e-9
         * (cmax - cmin)
@@ -701,7 +752,7 @@ fn pieces_hidden(
                 let any = maps.iter().any(|(frame, map, wp)| {
                     let (lmin, lmax) = frame.local_box(cmin, cmax);
                     let (a, b) = frame.local_box(pmin, pmax);
-                    box_hidden(map, lmin, lmax, a, b, *wp)
+                    box_hidden(map, lmin, lmax, a, b, *wp, slack)
                 });
                 if !any {
                     return false;

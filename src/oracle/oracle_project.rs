@@ -141,6 +141,14 @@ pub fn clip_below(points: &[DVec3], wp: f64) -> Option<Vec<DVec3>> {
     Some(out)
 }
 
+/// The part of a convex occluder (points in the frame) at `w >= lo`, as
+/// [`clip_below`] does for the other side.
+pub fn clip_above(points: &[DVec3], lo: f64) -> Option<Vec<DVec3>> {
+    let flip = |p: &DVec3| DVec3::new(p.x, p.y, -p.z);
+    let flipped: Vec<DVec3> = points.iter().map(flip).collect();
+    clip_below(&flipped, -lo).map(|v| v.iter().map(flip).collect())
+}
+
 /// The views of a convex occluder (points in the frame, all with `w` above
 /// every eye's) from each eye: convex counter-clockwise polygons on the
 /// plane `w = wp`. Empty polygons (a view seen edge-on) make the occluder

@@ -339,3 +339,125 @@ fn check_finds_no_violations_and_catches_a_lying_oracle() {
         assert!((0..3).all(|k| o[k] >= leaf.cell.lo[k] && o[k] <= leaf.cell.hi[k]));
     }
 }
+
+fn scene_of(objects: Vec<Vec<[Vec3; 3]>>) -> Scene {
+    let mut b = vis5d::scene::SceneBuilder::new(vis5d::scene::SceneFormat::Procedural);
+    for (i, tris) in objects.into_iter().enumerate() {
+        b.begin_object(format!("o{i}"));
+        for t in tris {
+            b.push_triangle(t).unwrap();
+        }
+    }
+    b.finish(std::path::Path::new("review")).unwrap()
+}
+
+fn quad_x(x: f32, h: f32) -> Vec<[Vec3; 3]> {
+    let p = |y: f32, z: f32| Vec3::new(x, y, z);
+    vec![
+        [p(-h, -h), p(h, -h), p(h, h)],
+        [p(-h, -h), p(h, h), p(-h, h)],
+    ]
+}
+
+fn boxed(min: Vec3, max: Vec3) -> Vec<[Vec3; 3]> {
+    let mut t = Vec::new();
+    vis5d::scene::procedural::shapes::push_box(&mut t, min, max);
+    t
+}
+
+/// The counterexamples of a review (2026-11-26), each with its witness
+/// ray: the object the tracer hits must not be hidden.
+#[test]
+fn review_counterexamples_stay_fixed() {
+    let cases: Vec<(&str, Scene, Aabb, Ray)> = vec![
+        (
+            // An occludee one f32 step behind a wall: the tracer's t ties.
+            "one ulp behind",
+            scene_of(vec![
+                quad_x(f32::from_bits(2.0f32.to_bits() + 1), 1.0),
+                quad_x(2.0, 128.0),
+            ]),
+            Aabb::new(Vec3::new(-10.0, -0.5, -0.5), Vec3::new(-9.0, 0.5, 0.5)),
+            Ray::new(
+                Vec3::new(-9.0, -0.5, 0.024_241_09),
+                Vec3::new(11.0, 0.050_789_833, -0.294_044_85),
+            ),
+        ),
+        (
+            // An occluder corner 1e-20 in front of the cell's face.
+            "corner on the face",
+            scene_of(vec![
+                vec![[
+                    Vec3::new(1e-20, -0.341_830_37, -0.492_479_1),
+                    Vec3::new(2.012_819_8, 0.970_323_56, 3.510_507_6),
+                    Vec3::new(1.074_579_8, -1.167_902, 7.779_474_3),
+                ]],
+                boxed(
+                    Vec3::new(6.739_907_3, -8.886_976, -0.059_370_995),
+                    Vec3::new(7.039_907_5, -8.586_976, 0.240_629_02),
+                ),
+            ]),
+            Aabb::new(Vec3::new(-0.1, -0.1, -0.1), Vec3::new(0.0, 0.1, 0.1)),
+            Ray::new(
+                Vec3::new(-0.007_632_091_6, 0.1, -0.1),
+                Vec3::new(6.965_734_5, -8.692_199, 0.040_629_007),
+            ),
+        ),
+        (
+            "sin(pi) from a point cell",
+            scene_of(vec![
+                vec![[
+                    Vec3::new(1.224_646_9e-16, -0.820_254_1, 0.273_308_28),
+                    Vec3::new(1.829_406_7, 3.626_968_4, -0.577_61),
+                    Vec3::new(2.121_785_6, 2.694_637_3, -3.786_832_8),
+                ]],
+                boxed(
+                    Vec3::new(7.536_247_7, -4.957_026, -9.415_441),
+                    Vec3::new(7.836_248, -4.657_026, -9.115_441),
+                ),
+            ]),
+            Aabb::new(Vec3::ZERO, Vec3::ZERO),
+            Ray::new(Vec3::ZERO, Vec3::new(7.755_234_2, -4.946_707_7, -9.534_675)),
+        ),
+        (
+            // A ray along a wall's diagonal (the tracer used to leak).
+            "shared edge",
+            scene_of(vec![
+                quad_x(2.0, 128.0),
+                boxed(Vec3::new(5.0, -0.3, -0.7), Vec3::new(6.0, 0.9, 0.4)),
+            ]),
+            Aabb::new(Vec3::new(-10.0, -0.5, -0.5), Vec3::new(-9.0, 0.5, 0.5)),
+            Ray::new(Vec3::new(-9.5, -0.3, -0.3), Vec3::X),
+        ),
+    ];
+    for (label, scene, cell, ray) in cases {
+        let tracer = Tracer::new(&scene);
+        let oracle = Oracle::new(&scene, OracleParams::default()).unwrap();
+        let report = oracle.cell(&cell, None);
+        let hit = tracer
+            .closest_hit(&ray)
+            .expect("the witness hits something");
+        assert!(
+            report.visible.contains(hit.object as usize),
+            "{label}: hid o{} which {ray:?} hits",
+            hit.object
+        );
+        // And random rays from the cell agree too.
+        let mut rng = Pcg64::seed_from_u64(11);
+        let found = violations(&oracle, &tracer, &cell, 20_000, &mut rng);
+        assert!(found.is_empty(), "{label}: {found:?}");
+    }
+    // A cell that is not a box proves nothing hidden.
+    let scene = scene_of(vec![
+        quad_x(2.0, 128.0),
+        boxed(Vec3::new(5.0, -0.3, -0.7), Vec3::new(6.0, 0.9, 0.4)),
+    ]);
+    let oracle = Oracle::new(&scene, OracleParams::default()).unwrap();
+    for cell in [
+        Aabb::new(Vec3::new(f32::NAN, -0.5, -0.5), Vec3::new(-9.0, 0.5, 0.5)),
+        Aabb::new(Vec3::new(-9.0, -0.5, -0.5), Vec3::new(-10.0, 0.5, 0.5)),
+        Aabb::new(Vec3::splat(f32::NEG_INFINITY), Vec3::new(-9.0, 0.5, 0.5)),
+    ] {
+        assert_eq!(oracle.cell(&cell, None).visible.count(), 2, "{cell:?}");
+    }
+}
