@@ -68,7 +68,8 @@
 //!
 //! Builder side (feature `builder`): [`scene`] (OBJ/glTF loading,
 //! procedural scenes), [`trace`] (the BVH tracer), [`sample`], [`sprt`],
-//! [`build`], [`oracle`] (the conservative extended-projection oracle).
+//! [`build`], [`oracle`] (the conservative extended-projection oracle),
+//! [`report`] (comparison of methods against a ray-cast ground truth).
 //!
 //! ## Features
 //!
@@ -90,6 +91,8 @@ pub mod geom;
 #[cfg(feature = "builder")]
 pub mod oracle;
 pub mod query;
+#[cfg(feature = "builder")]
+pub mod report;
 #[cfg(feature = "builder")]
 pub mod sample;
 #[cfg(feature = "builder")]

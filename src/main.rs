@@ -23,6 +23,7 @@ use vis5d::trace::Tracer;
 use vis5d::tree::{TreeSummary, VisTree};
 
 mod cli_oracle;
+mod cli_report;
 
 /// Precomputed from-region visibility for static 3D scenes.
 ///
@@ -94,6 +95,18 @@ enum Command {
     /// mean sizes of the oracle's, the sampled and the ground-truth sets.
     /// `--json` gives every leaf's detail.
     Check(cli_oracle::CheckArgs),
+    /// Compare visibility methods on a scene against a ray-cast ground
+    /// truth, and write a report page.
+    ///
+    /// For a set of views (random ones in the tree's view box, or a camera
+    /// path from `--views`), renders ID buffers by casting one ray per
+    /// pixel, then measures for each method (view-frustum culling, the
+    /// vis5d tree, the extended-projection oracle of a cell around the eye)
+    /// the objects and triangles it draws, the pixels whose object it
+    /// misses, the set errors Q_u and Q_o against the objects seen, and its
+    /// time. Writes DIR/index.html (tables and SVG plots), DIR/report.json
+    /// (every figure) and DIR/report.md.
+    Report(cli_report::ReportArgs),
     /// Generate a procedural test scene and write it as OBJ.
     ///
     /// Kinds: apartment (two furnished rooms joined by a door, ~170 objects,
@@ -331,6 +344,7 @@ fn main() -> ExitCode {
         Command::Query(args) => query(&args),
         Command::Oracle(args) => cli_oracle::oracle(&args),
         Command::Check(args) => cli_oracle::check(&args),
+        Command::Report(args) => cli_report::report(&args),
         Command::Scene(args) => generate_scene(&args),
     };
     match result {
@@ -1067,6 +1081,39 @@ fn default_fov() -> f32 {
     90.0
 }
 
+/// Reads a views file: a JSON list of `{"pos": [x,y,z], "dir": [x,y,z],
+/// "fov": degrees}` (square field of view, up = +z unless `dir` is
+/// vertical).
+fn read_views(path: &Path) -> Result<Vec<View>> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read the views", path.display()))?;
+    let specs: Vec<ViewSpec> = serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{}: expected a JSON list of {{\"pos\": [x,y,z], \"dir\": [x,y,z], \"fov\": degrees}}",
+            path.display()
+        )
+    })?;
+    specs
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let (pos, dir) = (Vec3::from_array(v.pos), Vec3::from_array(v.dir));
+            let ok = pos.is_finite()
+                && dir.is_finite()
+                && dir != Vec3::ZERO
+                && v.fov > 0.0
+                && v.fov < 180.0;
+            if !ok {
+                bail!(
+                    "{}: view {i} needs finite pos, a non-zero dir and 0 < fov < 180",
+                    path.display()
+                );
+            }
+            Ok(View::square(pos, dir, v.fov))
+        })
+        .collect()
+}
+
 fn query(args: &QueryArgs) -> Result<()> {
     let pvs = Pvs::load(&args.file)?;
     if let Some(model) = &args.scene {
@@ -1075,35 +1122,7 @@ fn query(args: &QueryArgs) -> Result<()> {
             .map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
     }
     let views: Vec<View> = match &args.views {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("{}: cannot read the views", path.display()))?;
-            let specs: Vec<ViewSpec> = serde_json::from_str(&text).with_context(|| {
-                format!(
-                    "{}: expected a JSON list of {{\"pos\": [x,y,z], \"dir\": [x,y,z], \"fov\": degrees}}",
-                    path.display()
-                )
-            })?;
-            specs
-                .iter()
-                .enumerate()
-                .map(|(i, v)| {
-                    let (pos, dir) = (Vec3::from_array(v.pos), Vec3::from_array(v.dir));
-                    let ok = pos.is_finite()
-                        && dir.is_finite()
-                        && dir != Vec3::ZERO
-                        && v.fov > 0.0
-                        && v.fov < 180.0;
-                    if !ok {
-                        bail!(
-                            "{}: view {i} needs finite pos, a non-zero dir and 0 < fov < 180",
-                            path.display()
-                        );
-                    }
-                    Ok(View::square(pos, dir, v.fov))
-                })
-                .collect::<Result<_>>()?
-        }
+        Some(path) => read_views(path)?,
         None => {
             let dir = args.dir.expect("clap requires --dir without --views");
             if dir == Vec3::ZERO {

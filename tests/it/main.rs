@@ -11,6 +11,7 @@ mod obj_load;
 mod oracle;
 mod procedural;
 mod real_scenes;
+mod report;
 mod sprt;
 mod trace;
 mod v5d;

@@ -1,0 +1,217 @@
+//! `vis5d report`: the page, the JSON and the Markdown, their figures
+//! checked against the ground truth they come from, and the page loaded
+//! in headless Chromium.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn vis5d(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vis5d"))
+        .args(args)
+        .current_dir(crate::root())
+        .output()
+        .unwrap()
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+/// Runs a small report on the machine scene into `dir`.
+fn small_report(dir: &Path, extra: &[&str]) -> serde_json::Value {
+    let out_dir = dir.to_str().unwrap();
+    let mut args = vec![
+        "report",
+        "scenes/machine.obj",
+        "-o",
+        out_dir,
+        "--random",
+        "6",
+        "--resolution",
+        "48",
+    ];
+    args.extend_from_slice(extra);
+    let out = vis5d(&args);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(text(&out.stdout).contains("wrote"), "{}", text(&out.stdout));
+    serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn report_writes_consistent_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    let j = small_report(dir.path(), &[]);
+    let names: Vec<&str> = j["methods"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["frustum", "vis5d", "oracle"]);
+    assert_eq!(j["views"].as_array().unwrap().len(), 6);
+    for m in j["methods"].as_array().unwrap() {
+        let per_view = m["per_view"].as_array().unwrap();
+        assert_eq!(per_view.len(), 6);
+        // The conservative methods never miss what the truth sees.
+        if m["name"] != "vis5d" {
+            assert_eq!(m["summary"]["missed_objects"], 0, "{}", m["name"]);
+            assert_eq!(m["summary"]["worst_pixel_error"], 0.0, "{}", m["name"]);
+        }
+        for (v, t) in per_view.iter().zip(j["views"].as_array().unwrap()) {
+            // Drawn = seen - missed + extra.
+            let seen = t["seen_objects"].as_u64().unwrap() as f64;
+            let drawn = v["objects"].as_u64().unwrap() as f64;
+            let missed = v["missed_objects"].as_u64().unwrap() as f64;
+            if seen > 0.0 {
+                let q_o = v["q_o"].as_f64().unwrap();
+                assert!(
+                    (drawn - (seen - missed) - q_o * seen).abs() < 1e-6,
+                    "{v} {t}"
+                );
+            }
+        }
+    }
+    // The oracle and the tree draw no more than frustum culling.
+    let mean = |k: usize| j["methods"][k]["summary"]["mean_objects"].as_f64().unwrap();
+    assert!(mean(1) <= mean(0) && mean(2) <= mean(0));
+    assert_eq!(j["tree"]["codings"].as_array().unwrap().len(), 3);
+    assert!(j["tree"]["build_seconds"].as_f64().is_some());
+    let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
+    assert_eq!(html.matches("<svg").count(), 4, "four plots");
+    assert!(!html.contains("<script"), "no JavaScript");
+    let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    assert!(
+        md.contains("| frustum |") && md.contains("| oracle |"),
+        "{md}"
+    );
+}
+
+#[test]
+fn report_takes_a_tree_and_a_camera_path_and_refuses_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let v5d = dir.path().join("m.v5d");
+    assert!(
+        vis5d(&[
+            "build",
+            "scenes/machine.obj",
+            "--max-depth",
+            "5",
+            "-o",
+            v5d.to_str().unwrap()
+        ])
+        .status
+        .success()
+    );
+    let views = dir.path().join("path.json");
+    std::fs::write(
+        &views,
+        r#"[{"pos": [0.5, 0.4, 0.3], "dir": [1, 0, 0], "fov": 60}, {"pos": [0.5, 0.4, 0.3], "dir": [0, 1, 0]}]"#,
+    )
+    .unwrap();
+    let out_dir = dir.path().join("r");
+    let j = small_report(
+        &out_dir,
+        &[
+            "--pvs",
+            v5d.to_str().unwrap(),
+            "--views",
+            views.to_str().unwrap(),
+            "--no-oracle",
+        ],
+    );
+    assert_eq!(j["views"].as_array().unwrap().len(), 2);
+    assert_eq!(j["methods"].as_array().unwrap().len(), 2);
+    assert!(j["tree"]["build_seconds"].is_null());
+    for (args, message) in [
+        (
+            vec![
+                "report",
+                "scenes/apartment.obj",
+                "-o",
+                "/tmp/x",
+                "--pvs",
+                v5d.to_str().unwrap(),
+            ],
+            "another scene",
+        ),
+        (
+            vec![
+                "report",
+                "scenes/machine.obj",
+                "-o",
+                "/tmp/x",
+                "--resolution",
+                "0",
+            ],
+            "--resolution",
+        ),
+        (vec!["report", "nope.obj", "-o", "/tmp/x"], "nope.obj"),
+    ] {
+        let out = vis5d(&args);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(
+            text(&out.stderr).contains(message),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+    }
+}
+
+/// The page in headless Chromium: it loads, its DOM holds the four plots,
+/// and a screenshot shows them. Skipped without Chromium unless
+/// `VIS5D_REQUIRE_CHROMIUM` is set (CI sets it).
+#[test]
+fn the_page_loads_in_headless_chromium() {
+    let chromium = ["chromium", "chromium-browser"].into_iter().find(|c| {
+        Command::new(c)
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success())
+    });
+    let Some(chromium) = chromium else {
+        assert!(
+            std::env::var_os("VIS5D_REQUIRE_CHROMIUM").is_none(),
+            "VIS5D_REQUIRE_CHROMIUM is set but chromium is not installed"
+        );
+        eprintln!("skipping: no chromium");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    small_report(dir.path(), &["--no-oracle"]);
+    let url = format!("file://{}", dir.path().join("index.html").display());
+    let headless = |extra: &[&str]| {
+        Command::new(chromium)
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--enable-logging=stderr",
+                "--v=0",
+            ])
+            .args(extra)
+            .arg(&url)
+            .output()
+            .unwrap()
+    };
+    let dom = headless(&["--dump-dom"]);
+    assert!(dom.status.success(), "{}", text(&dom.stderr));
+    let html = text(&dom.stdout);
+    assert_eq!(html.matches("<svg").count(), 4, "{html}");
+    assert!(
+        !text(&dom.stderr).contains("Uncaught"),
+        "{}",
+        text(&dom.stderr)
+    );
+    let shot = dir.path().join("page.png");
+    let out = headless(&[
+        &format!("--screenshot={}", shot.display()),
+        "--window-size=1100,2000",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let png = std::fs::read(&shot).unwrap();
+    assert!(
+        png.starts_with(b"\x89PNG") && png.len() > 20_000,
+        "{} bytes",
+        png.len()
+    );
+}
