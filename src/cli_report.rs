@@ -17,6 +17,7 @@ use vis5d::geom::Aabb;
 use vis5d::oracle::{Oracle, OracleParams};
 use vis5d::query::{Pvs, View};
 use vis5d::report::report_camera::Camera;
+use vis5d::report::report_lazy::{GridParams, LazyGrid};
 use vis5d::report::{ViewMetrics, ViewTruth, frustum_set, random_views, truth};
 use vis5d::scene::Scene;
 use vis5d::trace::Tracer;
@@ -59,6 +60,10 @@ pub struct ReportArgs {
     /// Leave the oracle out (it is the slowest method).
     #[arg(long)]
     no_oracle: bool,
+    /// Cell size of the lazy occlusion grid, in pixels (papers/002 used
+    /// 32 x 32).
+    #[arg(long, default_value_t = 32)]
+    grid_cell: u32,
 }
 
 #[derive(Serialize)]
@@ -127,6 +132,18 @@ struct TreeJson {
     codings: Vec<CodingJson>,
 }
 
+/// The lazy grid's costs for one view, lazy and busy (papers/002 Fig. 8).
+#[derive(Serialize)]
+struct GridCost {
+    lazy_pixel_queries: u64,
+    busy_pixel_queries: u64,
+    lazy_cell_updates: u64,
+    busy_cell_updates: u64,
+    boxes_tested: u64,
+    lazy_ms: f64,
+    busy_ms: f64,
+}
+
 #[derive(Serialize)]
 struct ReportJson {
     scene: String,
@@ -138,6 +155,8 @@ struct ReportJson {
     methods: Vec<MethodJson>,
     tree: TreeJson,
     oracle_cell: Option<f32>,
+    grid_cell_pixels: u32,
+    grid_costs: Vec<GridCost>,
 }
 
 struct Method {
@@ -216,6 +235,11 @@ pub fn report(args: &ReportArgs) -> Result<()> {
             description: "the vis5d tree (.v5d) queried per view, then view-frustum culling",
             per_view: Vec::new(),
         },
+        Method {
+            name: "lazy grid",
+            description: "the lazy occlusion grid of papers/002: an occlusion buffer with a grid of cells updated lazily, object boxes front to back (online, from the eye)",
+            per_view: Vec::new(),
+        },
     ];
     if oracle.is_some() {
         methods.push(Method {
@@ -224,6 +248,11 @@ pub fn report(args: &ReportArgs) -> Result<()> {
             per_view: Vec::new(),
         });
     }
+    if args.grid_cell == 0 || args.grid_cell > args.resolution {
+        bail!("--grid-cell must be between 1 and the resolution");
+    }
+    let grid = LazyGrid::new(&scene);
+    let mut grid_costs: Vec<GridCost> = Vec::with_capacity(views.len());
     let mut truths: Vec<ViewTruth> = Vec::with_capacity(views.len());
     let mut truth_seconds = 0.0;
     let bar = progress_bar("views", views.len() as u64);
@@ -250,13 +279,44 @@ pub fn report(args: &ReportArgs) -> Result<()> {
         methods[1]
             .per_view
             .push(ViewMetrics::of(&scene, &t, &set, s));
+        let start = Instant::now();
+        let lazy = grid.cull(
+            &camera,
+            &GridParams {
+                cell_pixels: args.grid_cell,
+                lazy: true,
+            },
+            &mut set,
+        );
+        let s = start.elapsed().as_secs_f64();
+        methods[2]
+            .per_view
+            .push(ViewMetrics::of(&scene, &t, &set, s));
+        let start = Instant::now();
+        let busy = grid.cull(
+            &camera,
+            &GridParams {
+                cell_pixels: args.grid_cell,
+                lazy: false,
+            },
+            &mut set,
+        );
+        grid_costs.push(GridCost {
+            lazy_pixel_queries: lazy.pixel_queries,
+            busy_pixel_queries: busy.pixel_queries,
+            lazy_cell_updates: lazy.cell_updates,
+            busy_cell_updates: busy.cell_updates,
+            boxes_tested: lazy.boxes_tested,
+            lazy_ms: 1e3 * s,
+            busy_ms: 1e3 * start.elapsed().as_secs_f64(),
+        });
         if let Some(oracle) = &oracle {
             let start = Instant::now();
             let cell = Aabb::new(view.position - half, view.position + half);
             let mut kept = oracle.cell(&cell, None).visible;
             kept.intersect_with(&frustum);
             let s = start.elapsed().as_secs_f64() + methods[0].per_view[i].seconds;
-            methods[2]
+            methods[3]
                 .per_view
                 .push(ViewMetrics::of(&scene, &t, &kept, s));
         }
@@ -328,6 +388,8 @@ pub fn report(args: &ReportArgs) -> Result<()> {
                 .collect(),
         },
         oracle_cell: oracle.as_ref().map(|_| 2.0 * half),
+        grid_cell_pixels: args.grid_cell,
+        grid_costs,
     };
     write_report(&args.output, &report, &truths, &scene)?;
     println!(
@@ -338,7 +400,7 @@ pub fn report(args: &ReportArgs) -> Result<()> {
     );
     for m in &report.methods {
         println!(
-            "  {:<8} {:>8.1} objects per view, geometry ratio {:>6.2}, pixel error {:.5}% (worst view {:.3}%), {} missed objects",
+            "  {:<10} {:>8.1} objects per view, geometry ratio {:>6.2}, pixel error {:.5}% (worst view {:.3}%), {} missed objects",
             m.name,
             m.summary.mean_objects,
             m.summary.geometry_ratio,
@@ -605,6 +667,22 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
     for row in &rows {
         writeln!(md, "| {} |", row.join(" | "))?;
     }
+    let (lazy_q, busy_q): (u64, u64) = r.grid_costs.iter().fold((0, 0), |a, c| {
+        (a.0 + c.lazy_pixel_queries, a.1 + c.busy_pixel_queries)
+    });
+    writeln!(
+        md,
+        "\nLazy occlusion grid ({} x {} pixel cells): {} pixel-level queries with lazy updates against {} with busy ones ({:.1}%).",
+        r.grid_cell_pixels,
+        r.grid_cell_pixels,
+        lazy_q,
+        busy_q,
+        if busy_q == 0 {
+            100.0
+        } else {
+            100.0 * lazy_q as f64 / busy_q as f64
+        }
+    )?;
     writeln!(md, "\n## The tree\n")?;
     writeln!(
         md,
@@ -659,6 +737,28 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
         &error_series,
         3,
         0.01,
+    )?;
+    let grid_plot = line_plot(
+        "Pixel-level queries of the occlusion grid per view",
+        "pixel queries",
+        &[
+            (
+                "lazy update",
+                r.grid_costs
+                    .iter()
+                    .map(|c| c.lazy_pixel_queries as f64)
+                    .collect(),
+            ),
+            (
+                "busy update",
+                r.grid_costs
+                    .iter()
+                    .map(|c| c.busy_pixel_queries as f64)
+                    .collect(),
+            ),
+        ],
+        0,
+        1.0,
     )?;
     let leaf_plot = histogram(
         "Objects per leaf of the tree",
@@ -733,6 +833,11 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
             "pixel-error",
             &error_plot,
             "Share of the view's hit pixels whose object the method does not draw.",
+        ),
+        (
+            "grid",
+            &grid_plot,
+            "The lazy occlusion grid's pixel-level queries, lazy against busy cell updates (papers/002 Fig. 8): the same sets, at different cost.",
         ),
         (
             "leaves",

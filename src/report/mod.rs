@@ -18,6 +18,7 @@
 //! the JSON and the Markdown.
 
 pub mod report_camera;
+pub mod report_lazy;
 
 use glam::Vec3;
 use rand::{RngExt, SeedableRng};

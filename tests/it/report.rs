@@ -47,7 +47,7 @@ fn report_writes_consistent_figures() {
         .iter()
         .map(|m| m["name"].as_str().unwrap())
         .collect();
-    assert_eq!(names, ["frustum", "vis5d", "oracle"]);
+    assert_eq!(names, ["frustum", "vis5d", "lazy grid", "oracle"]);
     assert_eq!(j["views"].as_array().unwrap().len(), 6);
     for m in j["methods"].as_array().unwrap() {
         let per_view = m["per_view"].as_array().unwrap();
@@ -71,13 +71,15 @@ fn report_writes_consistent_figures() {
             }
         }
     }
-    // The oracle and the tree draw no more than frustum culling.
+    // The tree, the grid and the oracle draw no more than frustum culling.
     let mean = |k: usize| j["methods"][k]["summary"]["mean_objects"].as_f64().unwrap();
-    assert!(mean(1) <= mean(0) && mean(2) <= mean(0));
+    assert!(mean(1) <= mean(0) && mean(2) <= mean(0) && mean(3) <= mean(0));
+    // Lazy and busy grid costs are both counted, per view.
+    assert_eq!(j["grid_costs"].as_array().unwrap().len(), 6);
     assert_eq!(j["tree"]["codings"].as_array().unwrap().len(), 3);
     assert!(j["tree"]["build_seconds"].as_f64().is_some());
     let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
-    assert_eq!(html.matches("<svg").count(), 4, "four plots");
+    assert_eq!(html.matches("<svg").count(), 5, "five plots");
     assert!(!html.contains("<script"), "no JavaScript");
     let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(
@@ -120,7 +122,7 @@ fn report_takes_a_tree_and_a_camera_path_and_refuses_bad_input() {
         ],
     );
     assert_eq!(j["views"].as_array().unwrap().len(), 2);
-    assert_eq!(j["methods"].as_array().unwrap().len(), 2);
+    assert_eq!(j["methods"].as_array().unwrap().len(), 3);
     assert!(j["tree"]["build_seconds"].is_null());
     for (args, message) in [
         (
@@ -157,7 +159,7 @@ fn report_takes_a_tree_and_a_camera_path_and_refuses_bad_input() {
     }
 }
 
-/// The page in headless Chromium: it loads, its DOM holds the four plots,
+/// The page in headless Chromium: it loads, its DOM holds the five plots,
 /// and a screenshot shows them. Skipped without Chromium unless
 /// `VIS5D_REQUIRE_CHROMIUM` is set (CI sets it).
 #[test]
@@ -196,7 +198,7 @@ fn the_page_loads_in_headless_chromium() {
     let dom = headless(&["--dump-dom"]);
     assert!(dom.status.success(), "{}", text(&dom.stderr));
     let html = text(&dom.stdout);
-    assert_eq!(html.matches("<svg").count(), 4, "{html}");
+    assert_eq!(html.matches("<svg").count(), 5, "{html}");
     assert!(
         !text(&dom.stderr).contains("Uncaught"),
         "{}",
