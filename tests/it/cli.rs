@@ -1,18 +1,6 @@
 //! The `vis5d` binary: help, `info`, `scene`, and its error messages.
 
-use std::process::{Command, Output};
-
-fn vis5d(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vis5d"))
-        .args(args)
-        .current_dir(crate::root())
-        .output()
-        .unwrap()
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
+use crate::{text, vis5d};
 
 #[test]
 fn help_explains_the_commands() {

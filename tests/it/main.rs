@@ -32,3 +32,17 @@ pub fn committed(name: &str) -> PathBuf {
 pub fn shared_scenes() -> PathBuf {
     root().join("..").join("shared").join("scenes")
 }
+
+/// Runs the `vis5d` binary in the project root.
+pub fn vis5d(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_vis5d"))
+        .args(args)
+        .current_dir(root())
+        .output()
+        .unwrap()
+}
+
+/// Output bytes as text.
+pub fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}

@@ -193,17 +193,7 @@ fn the_gpu_oracle_is_never_wrong_and_close_to_the_cpu() {
     }
 }
 
-fn vis5d(args: &[&str]) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_vis5d"))
-        .args(args)
-        .current_dir(crate::root())
-        .output()
-        .unwrap()
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
+use crate::{text, vis5d};
 
 #[test]
 fn oracle_command_reports_and_refuses_bad_input() {

@@ -3,19 +3,9 @@
 //! in headless Chromium.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Command;
 
-fn vis5d(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vis5d"))
-        .args(args)
-        .current_dir(crate::root())
-        .output()
-        .unwrap()
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
+use crate::{text, vis5d};
 
 /// Runs a small report on the machine scene into `dir`.
 fn small_report(dir: &Path, extra: &[&str]) -> serde_json::Value {
