@@ -116,7 +116,7 @@ pub struct OracleArgs {
     /// The scene file (.obj, .gltf or .glb).
     file: PathBuf,
     /// The view cell: a box of viewpoints, x0,y0,z0,x1,y1,z1.
-    #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box)]
+    #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box, allow_hyphen_values = true)]
     cell: Aabb,
     #[command(flatten)]
     flags: OracleFlags,

@@ -270,17 +270,17 @@ struct QueryArgs {
     /// The .v5d file.
     file: PathBuf,
     /// The eye position, x,y,z.
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, required_unless_present_any = ["views", "box"])]
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true, required_unless_present_any = ["views", "box"])]
     pos: Option<Vec3>,
     /// A box of eye positions instead of a point, x0,y0,z0,x1,y1,z1.
-    #[arg(id = "box", long = "box", value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box, conflicts_with = "pos")]
+    #[arg(id = "box", long = "box", value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box, allow_hyphen_values = true, conflicts_with = "pos")]
     positions: Option<Aabb>,
     /// The viewing direction, x,y,z.
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, required_unless_present = "views")]
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true, required_unless_present = "views")]
     dir: Option<Vec3>,
     /// The up direction [default: +z, or +y when looking straight up or
     /// down].
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3)]
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     up: Option<Vec3>,
     /// The field of view in degrees, horizontal and vertical.
     #[arg(long, default_value_t = 90.0)]
