@@ -210,6 +210,16 @@ fn oracle_command_reports_and_refuses_bad_input() {
     assert_eq!(visible + j["hidden"].as_u64().unwrap() as usize, 174);
     assert!(j["hidden"].as_u64().unwrap() > 10, "{j}");
     assert!(!j["planes"].as_array().unwrap().is_empty());
+    // Negative coordinates need no `=`.
+    let out = vis5d(&[
+        "oracle",
+        "scenes/city.obj",
+        "--cell",
+        "-5,-5,1,-1,-1,2",
+        "--json",
+        "--cpu",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
     let out = vis5d(&[
         "oracle",
         "scenes/apartment.obj",
