@@ -66,6 +66,8 @@ pub struct ReportArgs {
     grid_cell: u32,
 }
 
+/// One method's figures over the views. Q_u, Q_o and the pixel error
+/// are means over the views that show something (undefined otherwise).
 #[derive(Serialize)]
 struct MethodSummary {
     mean_objects: f64,
@@ -73,11 +75,17 @@ struct MethodSummary {
     mean_triangles: f64,
     max_triangles: u64,
     /// Triangles after frustum culling over triangles drawn, summed over
-    /// the views (the papers' geometry ratio).
-    geometry_ratio: f64,
+    /// the views (the papers' geometry ratio); `None` when the method
+    /// draws no triangle at all.
+    geometry_ratio: Option<f64>,
     mean_pixel_error: f64,
     worst_pixel_error: f64,
+    /// The view with the worst pixel error (its index).
+    worst_view: usize,
+    /// Misses summed over the views (an object missed in 3 views counts 3).
     missed_objects: usize,
+    /// Distinct objects missed in some view.
+    distinct_missed_objects: usize,
     views_with_misses: usize,
     mean_q_u: f64,
     mean_q_o: f64,
@@ -89,10 +97,13 @@ struct ViewJson {
     objects: usize,
     triangles: u64,
     missing_pixels: u64,
-    pixel_error: f64,
+    /// Missing pixels over hit pixels; `None` when nothing is hit.
+    pixel_error: Option<f64>,
     missed_objects: usize,
-    q_u: f64,
-    q_o: f64,
+    /// The objects seen but not drawn.
+    missed: Vec<u32>,
+    q_u: Option<f64>,
+    q_o: Option<f64>,
     ms: f64,
 }
 
@@ -163,6 +174,33 @@ struct Method {
     name: &'static str,
     description: &'static str,
     per_view: Vec<ViewMetrics>,
+    /// Per view, the objects seen but not drawn.
+    missed: Vec<Vec<u32>>,
+}
+
+impl Method {
+    fn new(name: &'static str, description: &'static str) -> Self {
+        Self {
+            name,
+            description,
+            per_view: Vec::new(),
+            missed: Vec::new(),
+        }
+    }
+
+    /// Records the set `drawn` of one view, taking `seconds`.
+    fn record(&mut self, scene: &Scene, truth: &ViewTruth, drawn: &ObjectSet, seconds: f64) {
+        self.per_view
+            .push(ViewMetrics::of(scene, truth, drawn, seconds));
+        self.missed.push(
+            truth
+                .seen
+                .iter()
+                .map(|&(o, _)| o)
+                .filter(|&o| !drawn.contains(o as usize))
+                .collect(),
+        );
+    }
 }
 
 pub fn report(args: &ReportArgs) -> Result<()> {
@@ -171,6 +209,12 @@ pub fn report(args: &ReportArgs) -> Result<()> {
     }
     if !(args.fov > 0.0 && args.fov < 180.0) {
         bail!("--fov must be between 0 and 180 degrees");
+    }
+    if args.grid_cell == 0 || args.grid_cell > args.resolution {
+        bail!("--grid-cell must be between 1 and the resolution");
+    }
+    if args.views.is_none() && args.random == 0 {
+        bail!("--random must be at least 1 (or give --views)");
     }
     if !(args.oracle_cell.is_finite() && args.oracle_cell > 0.0) {
         bail!("--oracle-cell must be a positive share of the scene's diagonal");
@@ -225,31 +269,24 @@ pub fn report(args: &ReportArgs) -> Result<()> {
     let half = 0.5 * args.oracle_cell * scene.bounds().diagonal();
     let n = scene.objects().len();
     let mut methods = vec![
-        Method {
-            name: "frustum",
-            description: "view-frustum culling: objects whose bounding box meets the frustum",
-            per_view: Vec::new(),
-        },
-        Method {
-            name: "vis5d",
-            description: "the vis5d tree (.v5d) queried per view, then view-frustum culling",
-            per_view: Vec::new(),
-        },
-        Method {
-            name: "lazy grid",
-            description: "the lazy occlusion grid of papers/002: an occlusion buffer with a grid of cells updated lazily, object boxes front to back (online, from the eye)",
-            per_view: Vec::new(),
-        },
+        Method::new(
+            "frustum",
+            "view-frustum culling: objects whose bounding box meets the frustum",
+        ),
+        Method::new(
+            "vis5d",
+            "the vis5d tree (.v5d) queried per view, then view-frustum culling",
+        ),
+        Method::new(
+            "lazy grid",
+            "the lazy occlusion grid of papers/002: an occlusion buffer with a grid of cells updated lazily, object boxes front to back (online, from the eye)",
+        ),
     ];
     if oracle.is_some() {
-        methods.push(Method {
-            name: "oracle",
-            description: "the extended-projection oracle of a cube around the eye, within the frustum",
-            per_view: Vec::new(),
-        });
-    }
-    if args.grid_cell == 0 || args.grid_cell > args.resolution {
-        bail!("--grid-cell must be between 1 and the resolution");
+        methods.push(Method::new(
+            "oracle",
+            "the extended-projection oracle of a cube around the eye, within the frustum",
+        ));
     }
     let grid = LazyGrid::new(&scene);
     let mut grid_costs: Vec<GridCost> = Vec::with_capacity(views.len());
@@ -266,9 +303,7 @@ pub fn report(args: &ReportArgs) -> Result<()> {
         let start = Instant::now();
         frustum_set(&scene, &camera, &mut frustum);
         let s = start.elapsed().as_secs_f64();
-        methods[0]
-            .per_view
-            .push(ViewMetrics::of(&scene, &t, &frustum, s));
+        methods[0].record(&scene, &t, &frustum, s);
         // The tree's answer holds what any leaf the frustum's directions
         // meet can see, also outside the frustum; a renderer culls those
         // with the frustum anyway, so the method is both.
@@ -276,9 +311,7 @@ pub fn report(args: &ReportArgs) -> Result<()> {
         pvs.query_view(view, &mut set);
         set.intersect_with(&frustum);
         let s = start.elapsed().as_secs_f64() + methods[0].per_view[i].seconds;
-        methods[1]
-            .per_view
-            .push(ViewMetrics::of(&scene, &t, &set, s));
+        methods[1].record(&scene, &t, &set, s);
         let start = Instant::now();
         let lazy = grid.cull(
             &camera,
@@ -289,9 +322,7 @@ pub fn report(args: &ReportArgs) -> Result<()> {
             &mut set,
         );
         let s = start.elapsed().as_secs_f64();
-        methods[2]
-            .per_view
-            .push(ViewMetrics::of(&scene, &t, &set, s));
+        methods[2].record(&scene, &t, &set, s);
         let start = Instant::now();
         let busy = grid.cull(
             &camera,
@@ -316,9 +347,7 @@ pub fn report(args: &ReportArgs) -> Result<()> {
             let mut kept = oracle.cell(&cell, None).visible;
             kept.intersect_with(&frustum);
             let s = start.elapsed().as_secs_f64() + methods[0].per_view[i].seconds;
-            methods[3]
-                .per_view
-                .push(ViewMetrics::of(&scene, &t, &kept, s));
+            methods[3].record(&scene, &t, &kept, s);
         }
         truths.push(t);
         bar.set_position(i as u64 + 1);
@@ -354,18 +383,20 @@ pub fn report(args: &ReportArgs) -> Result<()> {
             .map(|m| MethodJson {
                 name: m.name,
                 description: m.description,
-                summary: summarise(&m.per_view, &methods[0].per_view),
+                summary: summarise(&m.per_view, &methods[0].per_view, &m.missed),
                 per_view: m
                     .per_view
                     .iter()
-                    .map(|v| ViewJson {
+                    .zip(&m.missed)
+                    .map(|(v, missed)| ViewJson {
                         objects: v.objects,
                         triangles: v.triangles,
                         missing_pixels: v.missing_pixels,
-                        pixel_error: v.pixel_error,
+                        pixel_error: (v.seen > 0).then_some(v.pixel_error),
                         missed_objects: v.missed_objects,
-                        q_u: v.q_u,
-                        q_o: v.q_o,
+                        missed: missed.clone(),
+                        q_u: (v.seen > 0).then_some(v.q_u),
+                        q_o: (v.seen > 0).then_some(v.q_o),
                         ms: 1e3 * v.seconds,
                     })
                     .collect(),
@@ -400,39 +431,61 @@ pub fn report(args: &ReportArgs) -> Result<()> {
     );
     for m in &report.methods {
         println!(
-            "  {:<10} {:>8.1} objects per view, geometry ratio {:>6.2}, pixel error {:.5}% (worst view {:.3}%), {} missed objects",
+            "  {:<10} {:>8.1} objects per view, geometry ratio {}, pixel error {} (worst view {}), {} distinct objects missed",
             m.name,
             m.summary.mean_objects,
-            m.summary.geometry_ratio,
-            100.0 * m.summary.mean_pixel_error,
-            100.0 * m.summary.worst_pixel_error,
-            m.summary.missed_objects
+            m.summary
+                .geometry_ratio
+                .map_or("n/a".into(), |g| format!("{g:.2}")),
+            share(m.summary.mean_pixel_error),
+            share(m.summary.worst_pixel_error),
+            m.summary.distinct_missed_objects
         );
     }
     Ok(())
 }
 
-fn summarise(views: &[ViewMetrics], frustum: &[ViewMetrics]) -> MethodSummary {
+fn summarise(views: &[ViewMetrics], frustum: &[ViewMetrics], missed: &[Vec<u32>]) -> MethodSummary {
     let n = views.len().max(1) as f64;
+    let defined: Vec<&ViewMetrics> = views.iter().filter(|v| v.seen > 0).collect();
+    let d = defined.len().max(1) as f64;
     let frustum_tris: u64 = frustum.iter().map(|v| v.triangles).sum();
     let tris: u64 = views.iter().map(|v| v.triangles).sum();
+    let mut distinct: Vec<u32> = missed.iter().flatten().copied().collect();
+    distinct.sort_unstable();
+    distinct.dedup();
+    let (worst_view, worst) = views
+        .iter()
+        .enumerate()
+        .map(|(i, v)| (i, v.pixel_error))
+        .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
     MethodSummary {
         mean_objects: views.iter().map(|v| v.objects).sum::<usize>() as f64 / n,
         max_objects: views.iter().map(|v| v.objects).max().unwrap_or(0),
         mean_triangles: tris as f64 / n,
         max_triangles: views.iter().map(|v| v.triangles).max().unwrap_or(0),
-        geometry_ratio: if tris == 0 {
-            0.0
-        } else {
-            frustum_tris as f64 / tris as f64
-        },
-        mean_pixel_error: views.iter().map(|v| v.pixel_error).sum::<f64>() / n,
-        worst_pixel_error: views.iter().map(|v| v.pixel_error).fold(0.0, f64::max),
+        geometry_ratio: (tris > 0).then(|| frustum_tris as f64 / tris as f64),
+        mean_pixel_error: defined.iter().map(|v| v.pixel_error).sum::<f64>() / d,
+        worst_pixel_error: worst,
+        worst_view,
         missed_objects: views.iter().map(|v| v.missed_objects).sum(),
+        distinct_missed_objects: distinct.len(),
         views_with_misses: views.iter().filter(|v| v.missed_objects > 0).count(),
-        mean_q_u: views.iter().map(|v| v.q_u).sum::<f64>() / n,
-        mean_q_o: views.iter().map(|v| v.q_o).sum::<f64>() / n,
+        mean_q_u: defined.iter().map(|v| v.q_u).sum::<f64>() / d,
+        mean_q_o: defined.iter().map(|v| v.q_o).sum::<f64>() / d,
         mean_ms_per_view: 1e3 * views.iter().map(|v| v.seconds).sum::<f64>() / n,
+    }
+}
+
+/// A share for people: "0" when exactly zero, else three significant
+/// digits (so that a small non-zero value never reads as zero).
+fn share(x: f64) -> String {
+    if x == 0.0 {
+        "0".into()
+    } else if x >= 0.01 {
+        format!("{x:.3}")
+    } else {
+        format!("{x:.2e}")
     }
 }
 
@@ -463,7 +516,7 @@ fn line_plot(
             .flat_map(|s| s.1.iter().copied())
             .fold(0.0f64, f64::max)
             .max(y_min_top)
-            * 1.08;
+            * 1.3;
         let mut chart = ChartBuilder::on(&root)
             .caption(title, ("sans-serif", 18))
             .margin(12)
@@ -483,9 +536,16 @@ fn line_plot(
         for (k, (name, ys)) in series.iter().enumerate() {
             let colour = COLOURS[k % COLOURS.len()];
             chart
+                .draw_series(
+                    ys.iter()
+                        .enumerate()
+                        .map(|(i, &y)| Circle::new((i as f64, y), 2, colour.filled())),
+                )
+                .map_err(|e| anyhow!("plot: {e}"))?;
+            chart
                 .draw_series(LineSeries::new(
                     ys.iter().enumerate().map(|(i, &y)| (i as f64, y)),
-                    colour.stroke_width(2),
+                    colour.stroke_width(1),
                 ))
                 .map_err(|e| anyhow!("plot: {e}"))?
                 .label(*name)
@@ -619,7 +679,7 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
     };
     write("report.json", &json)?;
     // The tables, shared by the Markdown and the page.
-    let mut rows: Vec<[String; 10]> = Vec::new();
+    let mut rows: Vec<[String; 11]> = Vec::new();
     for m in &r.methods {
         let s = &m.summary;
         rows.push([
@@ -627,11 +687,22 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
             format!("{:.1}", s.mean_objects),
             s.max_objects.to_string(),
             format!("{:.0}", s.mean_triangles),
-            format!("{:.2}", s.geometry_ratio),
-            format!("{:.4}%", 100.0 * s.mean_pixel_error),
-            format!("{:.3}%", 100.0 * s.worst_pixel_error),
-            format!("{} ({} views)", s.missed_objects, s.views_with_misses),
-            format!("{:.3} / {:.3}", s.mean_q_u, s.mean_q_o),
+            s.max_triangles.to_string(),
+            s.geometry_ratio.map_or("n/a".into(), |g| format!("{g:.2}")),
+            share(s.mean_pixel_error),
+            if s.worst_pixel_error > 0.0 {
+                format!("{} (view {})", share(s.worst_pixel_error), s.worst_view)
+            } else {
+                "0".into()
+            },
+            format!(
+                "{} in {} of {} views ({} distinct)",
+                s.missed_objects,
+                s.views_with_misses,
+                r.views.len(),
+                s.distinct_missed_objects
+            ),
+            format!("{} / {}", share(s.mean_q_u), share(s.mean_q_o)),
             format!("{:.3}", s.mean_ms_per_view),
         ]);
     }
@@ -640,6 +711,7 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
         "objects / view",
         "max",
         "triangles / view",
+        "max",
         "geometry ratio",
         "pixel error",
         "worst view",
@@ -647,6 +719,37 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
         "Q_u / Q_o",
         "ms / view",
     ];
+    let blind = r.views.iter().filter(|v| v.seen_objects == 0).count();
+    let (lazy_q, busy_q): (u64, u64) = r.grid_costs.iter().fold((0, 0), |a, c| {
+        (a.0 + c.lazy_pixel_queries, a.1 + c.busy_pixel_queries)
+    });
+    let legend = format!(
+        "Geometry ratio: triangles after view-frustum culling over the method's, summed over the views. \
+         Pixel error: the share of a view's hit pixels whose object the method does not draw, averaged over the \
+         {} views that show something ({} show nothing); worst view: the largest, and which view. Missed objects: \
+         objects seen but not drawn, counted per view (an object missed in 3 views counts 3), and how many distinct. \
+         Q_u = |S_E \\ S_A| / |S_E| and Q_o = |S_A \\ S_E| / |S_E| (S_E the objects seen, S_A those drawn), averaged \
+         like the pixel error. ms / view: the method's time per view; for the tree and the oracle it includes the \
+         frustum test, for the lazy grid it is the lazy pass alone (the busy pass is timed in report.json). The ground \
+         truth took {:.0} ms per view. Lazy occlusion grid ({} x {} pixel cells): {} pixel-level queries with lazy \
+         updates, {} with busy ones ({}).{}",
+        r.views.len() - blind,
+        blind,
+        r.truth_ms_per_view,
+        r.grid_cell_pixels,
+        r.grid_cell_pixels,
+        lazy_q,
+        busy_q,
+        if busy_q == 0 {
+            "n/a".to_string()
+        } else {
+            format!("{:.1}%", 100.0 * lazy_q as f64 / busy_q as f64)
+        },
+        match r.oracle_cell {
+            Some(c) => format!(" The oracle's cell: a cube of {c:.3} scene units around the eye."),
+            None => String::new(),
+        }
+    );
     let seen_mean =
         truths.iter().map(|t| t.seen.len()).sum::<usize>() as f64 / truths.len().max(1) as f64;
     let mut md = String::new();
@@ -667,22 +770,7 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
     for row in &rows {
         writeln!(md, "| {} |", row.join(" | "))?;
     }
-    let (lazy_q, busy_q): (u64, u64) = r.grid_costs.iter().fold((0, 0), |a, c| {
-        (a.0 + c.lazy_pixel_queries, a.1 + c.busy_pixel_queries)
-    });
-    writeln!(
-        md,
-        "\nLazy occlusion grid ({} x {} pixel cells): {} pixel-level queries with lazy updates against {} with busy ones ({:.1}%).",
-        r.grid_cell_pixels,
-        r.grid_cell_pixels,
-        lazy_q,
-        busy_q,
-        if busy_q == 0 {
-            100.0
-        } else {
-            100.0 * lazy_q as f64 / busy_q as f64
-        }
-    )?;
+    writeln!(md, "\n{legend}")?;
     writeln!(md, "\n## The tree\n")?;
     writeln!(
         md,
@@ -727,7 +815,10 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
         .map(|m| {
             (
                 m.name,
-                m.per_view.iter().map(|v| 100.0 * v.pixel_error).collect(),
+                m.per_view
+                    .iter()
+                    .map(|v| 100.0 * v.pixel_error.unwrap_or(0.0))
+                    .collect(),
             )
         })
         .collect();
@@ -784,7 +875,7 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
         html,
         "<style>body{{font-family:sans-serif;max-width:64rem;margin:2rem auto;padding:0 1rem;color:#222}}\
          table{{border-collapse:collapse;margin:1rem 0}}th,td{{border:1px solid #ccc;padding:.3rem .6rem;text-align:right}}\
-         th:first-child,td:first-child{{text-align:left}}figure{{margin:1.5rem 0}}figcaption{{color:#555;font-size:.9rem}}</style></head><body>"
+         th:first-child,td:first-child{{text-align:left}}figure{{margin:1.5rem 0}}figcaption{{color:#555;font-size:.9rem}}.legend{{color:#444;font-size:.9rem}}</style></head><body>"
     )?;
     writeln!(html, "<h1>vis5d report: {}</h1>", html_escape(&r.scene))?;
     writeln!(
@@ -813,7 +904,11 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
                 .collect::<String>()
         )?;
     }
-    writeln!(html, "</table><ul>")?;
+    writeln!(
+        html,
+        "</table><p class=\"legend\">{}</p><ul>",
+        html_escape(&legend)
+    )?;
     for m in &r.methods {
         writeln!(
             html,
@@ -823,41 +918,33 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
         )?;
     }
     writeln!(html, "</ul>")?;
-    for (id, svg, caption) in [
-        (
-            "objects",
-            &objects_plot,
-            "Objects each method draws per view, and the objects the view really shows.",
-        ),
-        (
-            "pixel-error",
-            &error_plot,
-            "Share of the view's hit pixels whose object the method does not draw.",
-        ),
-        (
-            "grid",
-            &grid_plot,
-            "The lazy occlusion grid's pixel-level queries, lazy against busy cell updates (papers/002 Fig. 8): the same sets, at different cost.",
-        ),
-        (
-            "leaves",
-            &leaf_plot,
-            "How many objects the tree's leaves hold.",
-        ),
-        (
-            "codings",
-            &code_plot,
-            "The tree's sets coded three ways (papers/003 sec. 6).",
-        ),
-    ] {
+    let figure = |html: &mut String, id: &str, svg: &str, caption: &str| {
         writeln!(
             html,
             "<figure id=\"{id}\">{svg}<figcaption>{caption}</figcaption></figure>"
-        )?;
-    }
+        )
+    };
+    figure(
+        &mut html,
+        "objects",
+        &objects_plot,
+        "Objects each method draws per view, and the objects the view really shows.",
+    )?;
+    figure(
+        &mut html,
+        "pixel-error",
+        &error_plot,
+        "Share of the view's hit pixels whose object the method does not draw (lines at zero overlap).",
+    )?;
+    figure(
+        &mut html,
+        "grid",
+        &grid_plot,
+        "The lazy occlusion grid's pixel-level queries, lazy against busy cell updates (papers/002 Fig. 8): the same sets, at different cost.",
+    )?;
     writeln!(
         html,
-        "<h2>The tree</h2><p>{}: {} leaves, {} nodes, {:.1} objects per leaf{}.</p></body></html>",
+        "<h2>The tree</h2><p>{}: {} leaves, {} nodes, {:.1} objects per leaf{}.</p>",
         html_escape(&r.tree.source),
         r.tree.leaves,
         r.tree.nodes,
@@ -867,6 +954,24 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
             _ => String::new(),
         }
     )?;
+    writeln!(html, "<table><tr><th>coding</th><th>bytes</th></tr>")?;
+    for c in &r.tree.codings {
+        writeln!(html, "<tr><td>{}</td><td>{}</td></tr>", c.coding, c.bytes)?;
+    }
+    writeln!(html, "</table>")?;
+    figure(
+        &mut html,
+        "leaves",
+        &leaf_plot,
+        "How many objects the tree's leaves hold.",
+    )?;
+    figure(
+        &mut html,
+        "codings",
+        &code_plot,
+        "The tree's sets coded three ways (papers/003 sec. 6).",
+    )?;
+    writeln!(html, "</body></html>")?;
     write("index.html", html.as_bytes())?;
     Ok(())
 }

@@ -137,12 +137,16 @@ pub struct ViewMetrics {
     pub pixel_error: f64,
     /// Objects seen but not drawn, `|S_E \ S_A|`.
     pub missed_objects: usize,
-    /// Under-estimation `|S_E \ S_A| / |S_E|` (0 when nothing is seen).
+    /// Under-estimation `|S_E \ S_A| / |S_E|` (0 when nothing is seen; see
+    /// `seen`).
     pub q_u: f64,
     /// Over-estimation `|S_A \ S_E| / |S_E|` (0 when nothing is seen).
     pub q_o: f64,
     /// Seconds the method took for this view.
     pub seconds: f64,
+    /// Objects the view shows, `|S_E|` (when 0, `q_u`, `q_o` and the
+    /// pixel error are undefined, and left out of means).
+    pub seen: usize,
 }
 
 impl ViewMetrics {
@@ -183,6 +187,7 @@ impl ViewMetrics {
             q_u: share(missed_objects),
             q_o: share(extra),
             seconds,
+            seen,
         }
     }
 }

@@ -7,7 +7,8 @@ use glam::Vec3;
 use crate::query::View;
 use crate::trace::Ray;
 
-/// A square-pixel pinhole camera: an orthonormal frame, the tangents of the
+/// A pinhole camera (pixels are square when `tan_x / tan_y` equals
+/// `width / height`, as for the square views of `vis5d report`): an orthonormal frame, the tangents of the
 /// half fields of view and the image size. Pixel `(i, j)` (column `i` from
 /// the left, row `j` from the top) covers the image-plane square
 /// `x in [i, i + 1]`, `y in [j, j + 1]`; its centre ray goes through
@@ -36,10 +37,17 @@ impl Camera {
     /// The camera of `view` (its position, direction, up and fields of
     /// view) rendering `width` x `height` pixels. `None` when the view is
     /// degenerate (zero direction, up parallel to it, fields of view
-    /// outside (0, 180) degrees).
+    /// outside (0, 180) degrees, up within a milliradian of the
+    /// direction).
     pub fn new(view: &View, width: u32, height: u32) -> Option<Self> {
         let forward = view.dir.normalize_or_zero();
-        let right = forward.cross(view.up).normalize_or_zero();
+        let cross = forward.cross(view.up);
+        // Up (nearly) along the direction leaves the frame to rounding.
+        let right = if cross.length() > 1e-3 * view.up.length() {
+            cross.normalize()
+        } else {
+            Vec3::ZERO
+        };
         let ok = forward != Vec3::ZERO
             && right != Vec3::ZERO
             && view.fov_x > 0.0

@@ -138,6 +138,28 @@ fn report_takes_a_tree_and_a_camera_path_and_refuses_bad_input() {
             "--resolution",
         ),
         (vec!["report", "nope.obj", "-o", "/tmp/x"], "nope.obj"),
+        (
+            vec![
+                "report",
+                "scenes/machine.obj",
+                "-o",
+                "/tmp/x",
+                "--random",
+                "0",
+            ],
+            "--random",
+        ),
+        (
+            vec![
+                "report",
+                "scenes/machine.obj",
+                "-o",
+                "/tmp/x",
+                "--grid-cell",
+                "0",
+            ],
+            "--grid-cell",
+        ),
     ] {
         let out = vis5d(&args);
         assert!(!out.status.success(), "{args:?}");
