@@ -32,7 +32,8 @@ lazy = sum(c["lazy_pixel_queries"] for c in d["grid_costs"])
 busy = sum(c["busy_pixel_queries"] for c in d["grid_costs"])
 for m in d["methods"]:
     s = m["summary"]
-    print(f"| {sys.argv[2]} | {m['name']} | {s['mean_objects']:.1f} | {s['geometry_ratio']:.2f} | {100*s['mean_pixel_error']:.4f}% | "
+    g = "n/a" if s["geometry_ratio"] is None else f"{s['geometry_ratio']:.2f}"
+    print(f"| {sys.argv[2]} | {m['name']} | {s['mean_objects']:.1f} | {g} | {100*s['mean_pixel_error']:.4f}% | "
           f"{100*s['worst_pixel_error']:.3f}% | {s['missed_objects']} | {s['mean_q_u']:.4f} / {s['mean_q_o']:.2f} | {s['mean_ms_per_view']:.2f} |")
 print(f"| {sys.argv[2]} | *seen* | {seen:.1f} | | | | | | {d['truth_ms_per_view']:.0f} (truth) |")
 print(f"| {sys.argv[2]} | *grid lazy / busy pixel queries* | {lazy} / {busy} | | | | | | |")
