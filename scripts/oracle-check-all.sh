@@ -11,19 +11,11 @@ cargo build --release --quiet
 bin=target/release/vis5d
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
-scenes=(scenes/*.obj)
-for d in ../shared/scenes/*/; do
-    f=$(ls "$d" | grep -E '\.(obj|gltf|glb)$' | head -1 || true)
-    [ -n "$f" ] && scenes+=("$d$f")
-done
+source scripts/scenes.sh
 echo "| scene | objects | leaves | checked | oracle cells | ms/cell | oracle (all dirs) | oracle | sampled | truth | sampled only | violations | suspects | confirmed misses | max missed fraction |"
 echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
 for s in "${scenes[@]}"; do
-    # Committed scenes by file name, real ones by their folder's.
-    case "$s" in
-        scenes/*) name=$(basename "$s"); name=${name%.*} ;;
-        *) name=$(basename "$(dirname "$s")") ;;
-    esac
+    name=$(scene_name "$s")
     "$bin" build "$s" -o "$out/$name.v5d" >/dev/null
     "$bin" check "$s" "$out/$name.v5d" --sample "$sample" --json "$@" > "$out/$name.json"
     python3 - "$out/$name.json" "$name" <<'PY'

@@ -11,18 +11,11 @@ cargo build --release --quiet --bin vis5d
 bin=target/release/vis5d
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
-scenes=(scenes/*.obj)
-for d in ../shared/scenes/*/; do
-    f=$(ls "$d" | grep -E '\.(obj|gltf|glb)$' | head -1 || true)
-    [ -n "$f" ] && scenes+=("$d$f")
-done
+source scripts/scenes.sh
 echo "| scene | method | objects / view | geometry ratio | pixel error | worst view | missed objects | Q_u / Q_o | ms / view |"
 echo "|---|---|---:|---:|---:|---:|---:|---|---:|"
 for s in "${scenes[@]}"; do
-    case "$s" in
-        scenes/*) name=$(basename "$s"); name=${name%.*} ;;
-        *) name=$(basename "$(dirname "$s")") ;;
-    esac
+    name=$(scene_name "$s")
     "$bin" report "$s" -o "$out/$name" --random "$views" "$@" >/dev/null
     python3 - "$out/$name/report.json" "$name" <<'PY'
 import json, sys

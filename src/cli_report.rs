@@ -772,9 +772,9 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
     }
     writeln!(md, "\n{legend}")?;
     writeln!(md, "\n## The tree\n")?;
-    writeln!(
-        md,
-        "{}: {} leaves, {} nodes, {:.1} objects per leaf on average{}.\n",
+    // One sentence about the tree, for both pages.
+    let tree_line = format!(
+        "{}: {} leaves, {} nodes, {:.1} objects per leaf on average{}.",
         r.tree.source,
         r.tree.leaves,
         r.tree.nodes,
@@ -783,7 +783,8 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
             (Some(s), Some(n)) => format!("; built in {s:.2} s with {n} rays"),
             _ => String::new(),
         }
-    )?;
+    );
+    writeln!(md, "{tree_line}\n")?;
     writeln!(md, "| coding | bytes |\n|---|---:|")?;
     for c in &r.tree.codings {
         writeln!(md, "| {} | {} |", c.coding, c.bytes)?;
@@ -942,18 +943,7 @@ fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene
         &grid_plot,
         "The lazy occlusion grid's pixel-level queries, lazy against busy cell updates (papers/002 Fig. 8): the same sets, at different cost.",
     )?;
-    writeln!(
-        html,
-        "<h2>The tree</h2><p>{}: {} leaves, {} nodes, {:.1} objects per leaf{}.</p>",
-        html_escape(&r.tree.source),
-        r.tree.leaves,
-        r.tree.nodes,
-        r.tree.mean_leaf_objects,
-        match (r.tree.build_seconds, r.tree.rays) {
-            (Some(s), Some(n)) => format!("; built in {s:.2} s with {n} rays"),
-            _ => String::new(),
-        }
-    )?;
+    writeln!(html, "<h2>The tree</h2><p>{}</p>", html_escape(&tree_line))?;
     writeln!(html, "<table><tr><th>coding</th><th>bytes</th></tr>")?;
     for c in &r.tree.codings {
         writeln!(html, "<tr><td>{}</td><td>{}</td></tr>", c.coding, c.bytes)?;

@@ -344,6 +344,7 @@ impl<'a> Oracle<'a> {
         let start = Instant::now();
         let (lmin, lmax) = frame.local_box(cmin, cmax);
         let centre = 0.5 * (lmin + lmax);
+        let slack = self.slack(cmin, cmax);
         let skip = |o: &Occluder| parent_hidden.is_some_and(|h| h.contains(o.object as usize));
         // Candidates: occluders starting strictly in front of the face,
         // ranked by the area of their view from the centre on the plane
@@ -458,7 +459,7 @@ impl<'a> Oracle<'a> {
             let mut hidden = ObjectSet::new(self.scene.objects().len());
             let test = |qmin: DVec3, qmax: DVec3| {
                 let (a, b) = frame.local_box(qmin, qmax);
-                box_hidden(&map, lmin, lmax, a, b, wp, self.slack(cmin, cmax))
+                box_hidden(&map, lmin, lmax, a, b, wp, slack)
             };
             self.hierarchy.hidden(&test, &mut hidden);
             scored.push((hidden, filled, wp));
