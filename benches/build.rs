@@ -10,7 +10,7 @@
 use std::time::Duration;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use vis5d::build::{BuildParams, build, summarize};
+use vis5d::builder::{BuildParams, build, summarize};
 use vis5d::scene::Scene;
 use vis5d::scene::procedural::{SceneKind, generate};
 use vis5d::trace::Tracer;

@@ -13,7 +13,7 @@ use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_m
 use glam::Vec3;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
-use vis5d::build::{BuildParams, build, to_file};
+use vis5d::builder::{BuildParams, build, to_file};
 use vis5d::codec::write_file;
 use vis5d::query::{Pvs, View};
 use vis5d::scene::Scene;

@@ -11,7 +11,7 @@ use clap::Args;
 use plotters::prelude::*;
 use serde::Serialize;
 use vis5d::bitset::ObjectSet;
-use vis5d::build::{self, BuildParams};
+use vis5d::builder::{self, BuildParams};
 use vis5d::codec::{self, Coding, code_size};
 use vis5d::geom::Aabb;
 use vis5d::oracle::{Oracle, OracleParams};
@@ -238,13 +238,13 @@ pub fn report(args: &ReportArgs) -> Result<()> {
             let params = BuildParams::default();
             let bar = progress_bar("building the tree", 1000);
             let start = Instant::now();
-            let (tree, stats) = build::build(&scene, &tracer, &params, &|f| {
+            let (tree, stats) = builder::build(&scene, &tracer, &params, &|f| {
                 bar.set_position((f * 1000.0) as u64)
             })
             .map_err(|e| anyhow!("{e}"))?;
             bar.finish_and_clear();
             let seconds = start.elapsed().as_secs_f64();
-            let file = build::to_file(&scene, tree, &params, None);
+            let file = builder::to_file(&scene, tree, &params, None);
             (
                 file,
                 "built with the default parameters".to_string(),
@@ -353,7 +353,7 @@ pub fn report(args: &ReportArgs) -> Result<()> {
         bar.set_position(i as u64 + 1);
     }
     bar.finish_and_clear();
-    let summary = vis5d::build::summarize(&file.tree, &scene);
+    let summary = vis5d::builder::summarize(&file.tree, &scene);
     let leaf_set_sizes: Vec<usize> = file
         .tree
         .leaves()

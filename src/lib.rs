@@ -42,9 +42,9 @@
 //! # // Make a small .v5d file for the example (engines load theirs).
 //! # let scene = vis5d::scene::procedural::generate(vis5d::scene::procedural::SceneKind::Apartment, 1, 1);
 //! # let tracer = vis5d::trace::Tracer::new(&scene);
-//! # let params = vis5d::build::BuildParams { max_depth: 6, ..Default::default() };
-//! # let (tree, _) = vis5d::build::build(&scene, &tracer, &params, &|_| {}).unwrap();
-//! # let bytes = vis5d::codec::write_file(&vis5d::build::to_file(&scene, tree, &params, None));
+//! # let params = vis5d::builder::BuildParams { max_depth: 6, ..Default::default() };
+//! # let (tree, _) = vis5d::builder::build(&scene, &tracer, &params, &|_| {}).unwrap();
+//! # let bytes = vis5d::codec::write_file(&vis5d::builder::to_file(&scene, tree, &params, None));
 //! let pvs = Pvs::from_bytes(&bytes)?; // or Pvs::load("model.v5d")
 //! let mut visible = pvs.new_set(); // made once, reused every frame
 //! for frame in 0..3 {
@@ -68,7 +68,7 @@
 //!
 //! Builder side (feature `builder`): [`scene`] (OBJ/glTF loading,
 //! procedural scenes), [`trace`] (the BVH tracer), [`sample`], [`sprt`],
-//! [`build`], [`oracle`] (the conservative extended-projection oracle),
+//! [`builder`], [`oracle`] (the conservative extended-projection oracle),
 //! [`report`] (comparison of methods against a ray-cast ground truth).
 //!
 //! ## Features
@@ -85,7 +85,7 @@
 pub mod atomic_write;
 pub mod bitset;
 #[cfg(feature = "builder")]
-pub mod build;
+pub mod builder;
 pub mod codec;
 pub mod geom;
 #[cfg(feature = "builder")]

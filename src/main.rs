@@ -12,7 +12,7 @@ use clap::{Args, Parser, Subcommand};
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
-use vis5d::build::{BuildParams, BuildStats, PixelError, VerifyParams};
+use vis5d::builder::{BuildParams, BuildStats, PixelError, VerifyParams};
 use vis5d::codec::{self, Coding, code_size};
 use vis5d::geom::Aabb;
 use vis5d::query::{Pvs, View};
@@ -771,14 +771,14 @@ fn build(args: &BuildArgs) -> Result<()> {
     let bvh_seconds = start.elapsed().as_secs_f64();
 
     let bar = progress_bar("building", 1000);
-    let (tree, stats) = vis5d::build::build(&scene, &tracer, &params, &|f| {
+    let (tree, stats) = vis5d::builder::build(&scene, &tracer, &params, &|f| {
         bar.set_position((f * 1000.0) as u64)
     })
     .map_err(|e| anyhow::anyhow!("invalid build parameters: {e}"))?;
     bar.finish_and_clear();
     tree.validate()
         .map_err(|e| anyhow::anyhow!("internal error: the built tree is inconsistent: {e}"))?;
-    let summary = vis5d::build::summarize(&tree, &scene);
+    let summary = vis5d::builder::summarize(&tree, &scene);
 
     let start = Instant::now();
     let verify = (args.verify_views > 0).then(|| {
@@ -787,14 +787,14 @@ fn build(args: &BuildArgs) -> Result<()> {
             resolution: args.verify_resolution.max(1),
             ..VerifyParams::default()
         };
-        vis5d::build::pixel_error(&scene, &tracer, &tree, &v)
+        vis5d::builder::pixel_error(&scene, &tracer, &tree, &v)
     });
     let verify_seconds = start.elapsed().as_secs_f64();
     let sizes = coding_sizes(&tree);
     let written = if args.dry_run {
         None
     } else {
-        let file = vis5d::build::to_file(&scene, tree.clone(), &params, args.coding);
+        let file = vis5d::builder::to_file(&scene, tree.clone(), &params, args.coding);
         let bytes = codec::write_file(&file);
         // Encode -> decode must be the identity: check before writing.
         let back = codec::read_file(&bytes, codec::ReadLimits::default())

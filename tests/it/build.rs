@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use glam::Vec3;
-use vis5d::build::{BuildParams, VerifyParams, build, pixel_error, summarize};
+use vis5d::builder::{BuildParams, VerifyParams, build, pixel_error, summarize};
 use vis5d::geom::Aabb;
 use vis5d::geom::cell::{DIMS, THETA};
 use vis5d::scene::procedural::shapes::push_box;

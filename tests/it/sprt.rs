@@ -40,7 +40,7 @@ fn wrong_decisions_stay_within_what_a_and_b_promise() {
         ..SprtParams::PAPER_EXAMPLE
     };
     check(paper);
-    check(vis5d::build::BuildParams::default().sprt);
+    check(vis5d::builder::BuildParams::default().sprt);
 }
 
 fn check(params: SprtParams) {

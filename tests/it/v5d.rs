@@ -7,7 +7,7 @@ use glam::Vec3;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use vis5d::bitset::ObjectSet;
-use vis5d::build::{BuildParams, build, to_file, view_rays};
+use vis5d::builder::{BuildParams, build, to_file, view_rays};
 use vis5d::codec::{self, CodecError, Coding, ReadLimits};
 use vis5d::geom::Aabb;
 use vis5d::geom::cell::{Cell, DIMS, direction_to_angles};

@@ -19,7 +19,7 @@
 //! object is in one of them, so |A n B| = |A| + |B| - |C|, and each
 //! candidate costs two binary searches.
 
-use super::build_node::{CachedRay, Ctx};
+use super::builder_node::{CachedRay, Ctx};
 use crate::geom::cell::{Cell, DIMS, PHI, THETA, grid_value};
 
 /// A chosen split.

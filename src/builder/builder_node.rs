@@ -7,7 +7,7 @@ use std::time::Instant;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
-use super::{BuildParams, BuildStats, build_leaf, build_split, mix};
+use super::{BuildParams, BuildStats, builder_leaf, builder_split, mix};
 use crate::bitset::ObjectSet;
 use crate::geom::cell::{Cell, DIMS, PHI, THETA, grid_value};
 use crate::sample::{cell_point, cell_ray};
@@ -155,7 +155,7 @@ pub(super) fn build_node(
             {
                 None
             } else {
-                build_split::best_split(ctx, &cell, &cache)
+                builder_split::best_split(ctx, &cell, &cache)
             };
             match chosen {
                 Some(c) => Some((c.dim, c.code)),
@@ -172,7 +172,7 @@ pub(super) fn build_node(
     } else {
         0
     };
-    let set = build_leaf::visible_set(ctx, &cell, candidates, proven, seed, min_misses, stats);
+    let set = builder_leaf::visible_set(ctx, &cell, candidates, proven, seed, min_misses, stats);
     let Some((dim, code)) = split else {
         ctx.finished(&cell);
         return Built::Leaf(set);

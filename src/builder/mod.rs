@@ -6,13 +6,13 @@
 //! 1. top up C's cache of uniform cell rays (those of the parent that fall
 //!    in C are kept: the paper's "re-use rays cast to determine an inner
 //!    node's partitioning", sec. 9) and trace them; every object a cached
-//!    ray hits is proven visible (`build_node.rs`);
+//!    ray hits is proven visible (`builder_node.rs`);
 //! 2. decide the other candidates by the SPRT on object samples
-//!    (`build_leaf.rs`): C's set;
+//!    (`builder_leaf.rs`): C's set;
 //! 3. stop on the depth limit, on too few visible triangles (the paper's
 //!    "split only if at least 500 polygons are visible"), or when no
 //!    candidate split scores E(A, B) above the threshold
-//!    (`build_split.rs`); otherwise split, hand each child its half of the
+//!    (`builder_split.rs`); otherwise split, hand each child its half of the
 //!    cache and C's set as candidates, build both in parallel, and make C's
 //!    set the union of theirs.
 //!
@@ -31,15 +31,15 @@
 //! object invisible after seeing it hit (visible fraction below
 //! s_thresh): that is popping, which vis5d does not trade for tightness.
 
-mod build_leaf;
-mod build_node;
-mod build_split;
-mod build_verify;
+mod builder_leaf;
+mod builder_node;
+mod builder_split;
+mod builder_verify;
 
 use std::sync::atomic::AtomicU64;
 use std::time::Instant;
 
-pub use build_verify::{PixelError, VerifyParams, pixel_error, view_rays};
+pub use builder_verify::{PixelError, VerifyParams, pixel_error, view_rays};
 
 use crate::bitset::ObjectSet;
 use crate::codec::{Coding, FileObject, V5dFile, code_size};
@@ -361,7 +361,7 @@ pub fn build(
     params.check()?;
     let start = Instant::now();
     let root = Cell::all_directions(params.root_box(scene));
-    let ctx = build_node::Ctx {
+    let ctx = builder_node::Ctx {
         scene,
         tracer,
         params,
@@ -389,10 +389,10 @@ pub fn build(
     };
     let candidates = ObjectSet::full(scene.objects().len());
     let mut stats = BuildStats::default();
-    let built = build_node::build_node(
+    let built = builder_node::build_node(
         &ctx,
         root,
-        build_node::NodeState::ROOT,
+        builder_node::NodeState::ROOT,
         params.seed,
         &candidates,
         Vec::new(),

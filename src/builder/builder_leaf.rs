@@ -28,7 +28,7 @@
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
-use super::build_node::Ctx;
+use super::builder_node::Ctx;
 use super::{BuildStats, mix};
 use crate::bitset::ObjectSet;
 use crate::geom::cell::Cell;
