@@ -10,12 +10,10 @@
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use glam::Vec3;
-use rand::{RngExt, SeedableRng};
-use rand_pcg::Pcg64;
 use vis5d::builder::{BuildParams, build, to_file};
 use vis5d::codec::write_file;
 use vis5d::query::{Pvs, View};
+use vis5d::render::random_views;
 use vis5d::scene::Scene;
 use vis5d::scene::procedural::{SceneKind, generate};
 use vis5d::trace::Tracer;
@@ -30,21 +28,7 @@ fn file_for(scene: &Scene) -> Vec<u8> {
 }
 
 fn views(pvs: &Pvs) -> Vec<View> {
-    let mut rng = Pcg64::seed_from_u64(5);
-    let space = pvs.root_cell().space();
-    (0..VIEWS)
-        .map(|_| {
-            let eye = space.lerp(Vec3::new(rng.random(), rng.random(), rng.random()));
-            let z = rng.random_range(-1.0..1.0f32);
-            let a = rng.random_range(0.0..std::f32::consts::TAU);
-            let dir = Vec3::new(
-                (1.0 - z * z).sqrt() * a.cos(),
-                (1.0 - z * z).sqrt() * a.sin(),
-                z,
-            );
-            View::square(eye, dir, 90.0)
-        })
-        .collect()
+    random_views(&pvs.root_cell().space(), VIEWS, 90.0, 5)
 }
 
 fn queries(c: &mut Criterion) {

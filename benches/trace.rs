@@ -15,15 +15,15 @@ use std::path::Path;
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use glam::Vec3;
 use obvhs::BvhBuildParams;
 use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::builder::build_cwbvh_from_tris;
 use obvhs::ray::RayHit;
 use obvhs::triangle::Triangle as BvhTriangle;
-use rand::{RngExt, SeedableRng};
+use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
+use vis5d::random::{uniform_direction, uniform_point};
 use vis5d::scene::Scene;
 use vis5d::trace::{Ray, Tracer};
 
@@ -33,13 +33,7 @@ fn random_rays(scene: &Scene, n: usize) -> Vec<Ray> {
     let mut rng = Pcg64::seed_from_u64(2024);
     let b = scene.bounds();
     (0..n)
-        .map(|_| {
-            let o = b.lerp(Vec3::new(rng.random(), rng.random(), rng.random()));
-            let z = rng.random_range(-1.0..1.0f32);
-            let a = rng.random_range(0.0..std::f32::consts::TAU);
-            let r = (1.0 - z * z).sqrt();
-            Ray::new(o, Vec3::new(r * a.cos(), r * a.sin(), z))
-        })
+        .map(|_| Ray::new(uniform_point(&mut rng, &b), uniform_direction(&mut rng)))
         .collect()
 }
 

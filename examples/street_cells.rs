@@ -20,6 +20,7 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use vis5d::geom::Aabb;
 use vis5d::oracle::{Oracle, OracleParams};
+use vis5d::random::{uniform_direction, uniform_point};
 use vis5d::trace::{Ray, Tracer};
 
 fn main() -> ExitCode {
@@ -75,14 +76,7 @@ fn main() -> ExitCode {
             .map(|o| scene.objects()[o].triangle_count())
             .sum();
         let rays: Vec<Ray> = (0..200_000)
-            .map(|_| {
-                let o = cell.min
-                    + (cell.max - cell.min) * Vec3::new(rng.random(), rng.random(), rng.random());
-                let cz: f32 = rng.random_range(-1.0..1.0);
-                let a: f32 = rng.random_range(0.0..std::f32::consts::TAU);
-                let r = (1.0 - cz * cz).max(0.0).sqrt();
-                Ray::new(o, Vec3::new(r * a.cos(), r * a.sin(), cz))
-            })
+            .map(|_| Ray::new(uniform_point(&mut rng, &cell), uniform_direction(&mut rng)))
             .collect();
         let mut seen = vis5d::bitset::ObjectSet::new(scene.objects().len());
         for h in tracer.closest_hits(&rays).into_iter().flatten() {

@@ -14,11 +14,11 @@ use vis5d::bitset::ObjectSet;
 use vis5d::builder::{self, BuildParams};
 use vis5d::codec::{self, Coding, code_size};
 use vis5d::geom::Aabb;
+use vis5d::lazy_grid::{GridParams, LazyGrid};
 use vis5d::oracle::{Oracle, OracleParams};
 use vis5d::query::{Pvs, View};
-use vis5d::report::report_camera::Camera;
-use vis5d::report::report_lazy::{GridParams, LazyGrid};
-use vis5d::report::{ViewMetrics, ViewTruth, frustum_set, random_views, truth};
+use vis5d::render::{Camera, random_views};
+use vis5d::report::{ViewMetrics, ViewTruth, frustum_set, truth};
 use vis5d::scene::Scene;
 use vis5d::trace::Tracer;
 

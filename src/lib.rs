@@ -88,9 +88,16 @@ pub mod bitset;
 pub mod builder;
 pub mod codec;
 pub mod geom;
+pub mod invariant;
+#[cfg(feature = "builder")]
+pub mod lazy_grid;
 #[cfg(feature = "builder")]
 pub mod oracle;
 pub mod query;
+#[cfg(feature = "builder")]
+pub mod random;
+#[cfg(feature = "builder")]
+pub mod render;
 #[cfg(feature = "builder")]
 pub mod report;
 #[cfg(feature = "builder")]

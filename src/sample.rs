@@ -22,6 +22,7 @@ use crate::geom::Aabb;
 use crate::geom::cell::{
     AngularBox, Cell, DIMS, angles_to_direction, direction_bounds, directions_meet,
 };
+use crate::random::uniform_point;
 use crate::scene::Scene;
 use crate::trace::Ray;
 
@@ -66,7 +67,7 @@ fn object_sample_in<R: Rng + ?Sized>(
     rng: &mut R,
 ) -> Option<Ray> {
     let space = cell.space();
-    let p = space.lerp(Vec3::new(rng.random(), rng.random(), rng.random()));
+    let p = uniform_point(rng, &space);
     let q = scene.sample_surface(object, rng);
     let d = q - p;
     (d != Vec3::ZERO && angles.contains(d))

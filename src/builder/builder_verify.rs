@@ -1,17 +1,14 @@
 //! The pixel error of a tree: how often a rendered pixel shows an object
-//! that the tree says cannot be seen. For random views in the view box,
-//! an object-ID image is rendered by casting one ray per pixel with the
-//! tracer, and each pixel's object is looked up in the set of the leaf its
-//! ray falls in. This is the check of issue #3: against rays, not against
+//! that the tree says cannot be seen. For random views in the view box
+//! ([`random_views`]), an ID buffer is rendered through the shared
+//! [`Camera`] ([`IdBuffer`]: one ray per pixel, exact tracer), and each
+//! pixel's object is looked up in the set of the leaf its ray falls in. This is the check of issue #3: against rays, not against
 //! the builder's own opinion.
 
-use glam::Vec3;
-use rand::{RngExt, SeedableRng};
-use rand_pcg::Pcg64;
-
 use crate::geom::cell::direction_to_angles;
+use crate::render::{Camera, IdBuffer, random_views};
 use crate::scene::Scene;
-use crate::trace::{Ray, Tracer};
+use crate::trace::Tracer;
 use crate::tree::VisTree;
 
 /// How to render the check's views.
@@ -65,59 +62,43 @@ impl PixelError {
     }
 }
 
-/// The pixel rays of a square view from `eye` along `forward`.
-pub fn view_rays(eye: Vec3, forward: Vec3, resolution: u32, fov_degrees: f32) -> Vec<Ray> {
-    let f = forward.normalize();
-    let up = if f.z.abs() > 0.99 { Vec3::X } else { Vec3::Z };
-    let right = f.cross(up).normalize();
-    let up = right.cross(f);
-    let half = (fov_degrees.to_radians() * 0.5).tan();
-    let n = resolution as f32;
-    (0..resolution * resolution)
-        .map(|i| {
-            let x = ((i % resolution) as f32 + 0.5) / n * 2.0 - 1.0;
-            let y = 1.0 - ((i / resolution) as f32 + 0.5) / n * 2.0;
-            Ray::new(eye, f + right * (x * half) + up * (y * half))
-        })
-        .collect()
-}
-
 /// Renders `params.views` random views inside the tree's view box and
 /// counts the pixels whose object is missing from the set of the leaf the
-/// pixel's ray falls in.
+/// pixel's ray falls in. Nothing is rendered when the parameters give no
+/// image (a field of view outside (0, 180) degrees, resolution 0).
 pub fn pixel_error(
     scene: &Scene,
     tracer: &Tracer,
     tree: &VisTree,
     params: &VerifyParams,
 ) -> PixelError {
-    let mut rng = Pcg64::seed_from_u64(params.seed);
     let space = tree.root_cell().space();
-    let mut out = PixelError {
-        views: params.views,
-        ..Default::default()
-    };
+    let mut out = PixelError::default();
     let mut missing = vec![0u64; scene.objects().len()];
-    for _ in 0..params.views {
-        let eye = space.lerp(Vec3::new(rng.random(), rng.random(), rng.random()));
-        let z = rng.random_range(-1.0..1.0f32);
-        let a = rng.random_range(0.0..std::f32::consts::TAU);
-        let forward = Vec3::new(
-            (1.0 - z * z).sqrt() * a.cos(),
-            (1.0 - z * z).sqrt() * a.sin(),
-            z,
-        );
-        let rays = view_rays(eye, forward, params.resolution, params.fov_degrees);
-        let hits = tracer.closest_hits(&rays);
+    let n = params.resolution;
+    for view in random_views(
+        &space,
+        params.views as usize,
+        params.fov_degrees,
+        params.seed,
+    ) {
+        // Random views always have a frame; a field of view outside
+        // (0, 180) degrees or an empty image renders nothing.
+        let Some(camera) = Camera::new(&view, n, n) else {
+            continue;
+        };
+        out.views += 1;
+        let ids = IdBuffer::render(tracer, &camera);
         let (mut hit, mut miss) = (0u64, 0u64);
-        for (r, h) in rays.iter().zip(&hits) {
-            let Some(h) = h else { continue };
+        for ((i, j), object) in ids.pixels() {
+            let Some(object) = object else { continue };
             hit += 1;
+            let r = camera.pixel_ray(i, j);
             let (theta, phi) = direction_to_angles(r.dir);
             let leaf = tree.locate([r.origin.x, r.origin.y, r.origin.z, theta, phi]);
-            if !tree.nodes()[leaf].set.contains(h.object as usize) {
+            if !tree.nodes()[leaf].set.contains(object as usize) {
                 miss += 1;
-                missing[h.object as usize] += 1;
+                missing[object as usize] += 1;
             }
         }
         out.hit_pixels += hit;

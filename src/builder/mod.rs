@@ -39,7 +39,7 @@ mod builder_verify;
 use std::sync::atomic::AtomicU64;
 use std::time::Instant;
 
-pub use builder_verify::{PixelError, VerifyParams, pixel_error, view_rays};
+pub use builder_verify::{PixelError, VerifyParams, pixel_error};
 
 use crate::bitset::ObjectSet;
 use crate::codec::{Coding, FileObject, V5dFile, code_size};

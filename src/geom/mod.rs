@@ -1,11 +1,19 @@
-//! Geometry shared by every stage: boxes now; 5D view cells, ray
-//! parametrisation and frustum conversion join here with the builder.
+//! Geometry shared by every stage: boxes ([`Aabb`]), 5D view cells and
+//! the ray parametrisation ([`cell`]); with the builder, convex polygons
+//! in the plane ([`polygon`]) and the hierarchy of object boxes
+//! ([`BoxTree`]).
 //!
 //! Nothing here depends on the builder's crates, so the runtime query side
 //! can use it with `default-features = false`.
 
 mod aabb;
+#[cfg(feature = "builder")]
+mod box_tree;
 pub mod cell;
+#[cfg(feature = "builder")]
+pub mod polygon;
 
 pub use aabb::Aabb;
+#[cfg(feature = "builder")]
+pub use box_tree::{BoxNode, BoxTree};
 pub use cell::Cell;

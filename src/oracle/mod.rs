@@ -51,7 +51,8 @@ use std::time::{Duration, Instant};
 use glam::{DVec2, DVec3};
 
 use crate::bitset::ObjectSet;
-use crate::geom::Aabb;
+use crate::geom::polygon::{convex_hull, signed_area};
+use crate::geom::{Aabb, BoxTree};
 use crate::scene::Scene;
 use oracle_occluders::{Occluder, OccluderCounts, SlicedSolid};
 use oracle_plane::{DepthMap, ProjectedOccluder, cpu_rasterise};
@@ -200,11 +201,7 @@ impl<'a> Oracle<'a> {
             solids,
             counts,
         } = oracle_occluders::extract(scene);
-        let boxes: Vec<(DVec3, DVec3)> = scene
-            .objects()
-            .iter()
-            .map(|o| (o.bounds.min.as_dvec3(), o.bounds.max.as_dvec3()))
-            .collect();
+        let boxes: Vec<Aabb> = scene.objects().iter().map(|o| o.bounds).collect();
         Ok(Self {
             scene,
             occluders,
@@ -300,7 +297,10 @@ impl<'a> Oracle<'a> {
                 let (a, b) = frame.local_box(qmin, qmax);
                 box_hidden(map, lmin, lmax, a, b, *wp, slack)
             };
-            self.hierarchy.hidden(&test, &mut hidden);
+            self.hierarchy.mark_where(
+                &|b: &Aabb| test(b.min.as_dvec3(), b.max.as_dvec3()),
+                &mut hidden,
+            );
             planes[k].hidden = hidden.count() - before;
         }
         // Boxes not hidden whole: cut into the pieces in front of each face.
@@ -383,7 +383,7 @@ impl<'a> Oracle<'a> {
                     .iter()
                     .map(|&p| project(centre, frame.local(p), centre.z + 1.0)),
             );
-            let area = oracle_plane::signed_area(&oracle_plane::convex_hull(&mut scratch));
+            let area = signed_area(&convex_hull(&mut scratch));
             if area > 0.0 {
                 ranked.push((area, i, omin, omax));
             }
@@ -461,7 +461,10 @@ impl<'a> Oracle<'a> {
                 let (a, b) = frame.local_box(qmin, qmax);
                 box_hidden(&map, lmin, lmax, a, b, wp, slack)
             };
-            self.hierarchy.hidden(&test, &mut hidden);
+            self.hierarchy.mark_where(
+                &|b: &Aabb| test(b.min.as_dvec3(), b.max.as_dvec3()),
+                &mut hidden,
+            );
             scored.push((hidden, filled, wp));
         }
         // The best position, then (greedily) those that hide the most
@@ -762,104 +765,4 @@ fn pieces_hidden(
         }
     }
     true
-}
-
-/// A bounding-box hierarchy over the objects (median split on the longest
-/// axis), to test many occludees with one box where they are hidden
-/// together.
-struct BoxTree {
-    nodes: Vec<BoxNode>,
-    order: Vec<u32>,
-}
-
-struct BoxNode {
-    min: DVec3,
-    max: DVec3,
-    /// Leaf: `order[first..first + count]`; inner (count 0): children at
-    /// `self + 1` and `first`.
-    first: u32,
-    count: u32,
-}
-
-impl BoxTree {
-    fn new(boxes: &[(DVec3, DVec3)]) -> Self {
-        let mut tree = Self {
-            nodes: Vec::new(),
-            order: (0..boxes.len() as u32).collect(),
-        };
-        if !boxes.is_empty() {
-            let mut order = std::mem::take(&mut tree.order);
-            tree.build(boxes, &mut order, 0);
-            tree.order = order;
-        }
-        tree
-    }
-
-    fn build(&mut self, boxes: &[(DVec3, DVec3)], order: &mut [u32], offset: usize) -> usize {
-        let (min, max) = order
-            .iter()
-            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), &i| {
-                (a.min(boxes[i as usize].0), b.max(boxes[i as usize].1))
-            });
-        let at = self.nodes.len();
-        self.nodes.push(BoxNode {
-            min,
-            max,
-            first: offset as u32,
-            count: order.len() as u32,
-        });
-        if order.len() <= 1 {
-            return at;
-        }
-        let size = max - min;
-        let axis = if size.x >= size.y && size.x >= size.z {
-            0
-        } else if size.y >= size.z {
-            1
-        } else {
-            2
-        };
-        let centre = |i: u32| boxes[i as usize].0[axis] + boxes[i as usize].1[axis];
-        order.sort_by(|&a, &b| centre(a).total_cmp(&centre(b)).then(a.cmp(&b)));
-        let mid = order.len() / 2;
-        let (left, right) = order.split_at_mut(mid);
-        self.build(boxes, left, offset);
-        let r = self.build(boxes, right, offset + mid);
-        self.nodes[at].count = 0;
-        self.nodes[at].first = r as u32;
-        at
-    }
-
-    /// Marks in `hidden` every object under a node whose box `test` hides,
-    /// testing objects one by one at the leaves.
-    fn hidden(&self, test: &dyn Fn(DVec3, DVec3) -> bool, hidden: &mut ObjectSet) {
-        if self.nodes.is_empty() {
-            return;
-        }
-        let mut stack = vec![0usize];
-        while let Some(k) = stack.pop() {
-            let node = &self.nodes[k];
-            if test(node.min, node.max) {
-                self.mark(k, hidden);
-                continue;
-            }
-            if node.count > 0 {
-                continue; // a leaf: its one object is not hidden here
-            }
-            stack.push(k + 1);
-            stack.push(node.first as usize);
-        }
-    }
-
-    fn mark(&self, k: usize, hidden: &mut ObjectSet) {
-        let node = &self.nodes[k];
-        if node.count > 0 {
-            for &i in &self.order[node.first as usize..(node.first + node.count) as usize] {
-                hidden.insert(i as usize);
-            }
-        } else {
-            self.mark(k + 1, hidden);
-            self.mark(node.first as usize, hidden);
-        }
-    }
 }

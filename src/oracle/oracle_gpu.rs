@@ -44,6 +44,8 @@ use std::sync::{Arc, Mutex};
 use glam::DVec2;
 use wgpu::util::DeviceExt;
 
+use crate::geom::polygon::{clip_half_plane, signed_area};
+
 pub use super::oracle_plane::ProjectedOccluder;
 
 /// GPU failures: no adapter, device lost, validation error, readback
@@ -776,32 +778,6 @@ fn prepare(n: usize, occluders: &[ProjectedOccluder]) -> Vec<Prepared> {
         .collect()
 }
 
-/// Twice the signed area of a polygon (positive when counter-clockwise).
-fn signed_area2(p: &[DVec2]) -> f64 {
-    (0..p.len())
-        .map(|i| p[i].perp_dot(p[(i + 1) % p.len()]))
-        .sum()
-}
-
-/// Keeps the part of a convex polygon where `f >= 0` (`f` affine).
-fn clip(poly: &[DVec2], f: impl Fn(DVec2) -> f64) -> Vec<DVec2> {
-    let mut out = Vec::with_capacity(poly.len() + 1);
-    for (i, &a) in poly.iter().enumerate() {
-        let b = poly[(i + 1) % poly.len()];
-        let (fa, fb) = (f(a), f(b));
-        if fa >= 0.0 {
-            out.push(a);
-        }
-        if (fa >= 0.0) != (fb >= 0.0) {
-            // Clamped so the new vertex stays on the segment, hence inside
-            // the earlier half-planes.
-            let t = (fa / (fa - fb)).clamp(0.0, 1.0);
-            out.push(a + (b - a) * t);
-        }
-    }
-    out
-}
-
 /// The eroded view: the region where a pixel centre may be sampled by the
 /// GPU only if the pixel square lies inside `view`, or `None` if empty.
 ///
@@ -828,7 +804,7 @@ fn erode_view(view: &[DVec2], side: f64) -> Option<Vec<DVec2>> {
     if view.len() < 3 || view.iter().any(|p| !p.is_finite()) {
         return None;
     }
-    let area2 = signed_area2(view);
+    let area2 = signed_area(view);
     if area2 == 0.0 || !area2.is_finite() {
         return None;
     }
@@ -850,30 +826,30 @@ fn erode_view(view: &[DVec2], side: f64) -> Option<Vec<DVec2>> {
         } else if d.x == 0.0 {
             if d.y < 0.0 {
                 let c = a.x.ceil();
-                clip(&poly, |x| x.x - c)
+                clip_half_plane(&poly, |x| x.x - c)
             } else {
                 let c = a.x.floor();
-                clip(&poly, |x| c - x.x)
+                clip_half_plane(&poly, |x| c - x.x)
             }
         } else if d.y == 0.0 {
             if d.x > 0.0 {
                 let c = a.y.ceil();
-                clip(&poly, |x| x.y - c)
+                clip_half_plane(&poly, |x| x.y - c)
             } else {
                 let c = a.y.floor();
-                clip(&poly, |x| c - x.y)
+                clip_half_plane(&poly, |x| c - x.y)
             }
         } else {
             let normal = d.perp() / d.length();
             let scale = a.abs().max_element().max(b.abs().max_element()) + side + 1.0;
             let shift = 0.5 * (normal.x.abs() + normal.y.abs()) + SNAP_MARGIN + F64_ERROR * scale;
-            clip(&poly, |x| normal.dot(x - a) - shift)
+            clip_half_plane(&poly, |x| normal.dot(x - a) - shift)
         };
         if poly.len() < 3 {
             return None;
         }
     }
-    (signed_area2(&poly) > 0.0).then_some(poly)
+    (signed_area(&poly) > 0.0).then_some(poly)
 }
 
 /// Occluders drawn together: same view count, pixel-disjoint rectangles.
@@ -1061,7 +1037,7 @@ mod tests {
                 continue;
             }
             let inside = |view: &[DVec2], p: DVec2| {
-                let s = signed_area2(view).signum();
+                let s = signed_area(view).signum();
                 (0..view.len()).all(|e| {
                     let (a, b) = (view[e], view[(e + 1) % view.len()]);
                     s * (b - a).perp_dot(p - a) >= 0.0
@@ -1084,7 +1060,7 @@ mod tests {
                         .map(|(dx, dy)| DVec2::new((i + dx) as f64, (j + dy) as f64));
                     let covered = o.views.iter().all(|v| {
                         v.len() >= 3
-                            && signed_area2(v) != 0.0
+                            && signed_area(v) != 0.0
                             && corners.iter().all(|&c| inside(v, c))
                     });
                     if covered {

@@ -26,7 +26,7 @@ use std::collections::HashMap;
 
 use glam::{DVec2, DVec3, Vec3};
 
-use super::oracle_plane::{convex_hull, signed_area};
+use crate::geom::polygon::{convex_hull, signed_area};
 use crate::scene::Scene;
 
 /// Relative tolerance for "on the plane" (times the piece's size).

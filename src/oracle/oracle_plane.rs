@@ -17,81 +17,6 @@ use glam::DVec2;
 /// Relative margin against rounding, in pixels.
 const MARGIN: f64 = 1e-6;
 
-/// The signed area of a polygon (positive when counter-clockwise).
-pub fn signed_area(p: &[DVec2]) -> f64 {
-    let mut a = 0.0;
-    for i in 0..p.len() {
-        let (q, r) = (p[i], p[(i + 1) % p.len()]);
-        a += q.x * r.y - r.x * q.y;
-    }
-    0.5 * a
-}
-
-/// Makes `p` counter-clockwise.
-pub fn make_ccw(p: &mut [DVec2]) {
-    if signed_area(p) < 0.0 {
-        p.reverse();
-    }
-}
-
-/// The convex hull of points, counter-clockwise (Andrew's monotone chain);
-/// collinear points dropped.
-pub fn convex_hull(points: &mut Vec<DVec2>) -> Vec<DVec2> {
-    points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
-    points.dedup();
-    if points.len() < 3 {
-        return Vec::new();
-    }
-    let cross = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
-    let mut hull: Vec<DVec2> = Vec::with_capacity(points.len() * 2);
-    for &p in points.iter() {
-        while hull.len() >= 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
-            hull.pop();
-        }
-        hull.push(p);
-    }
-    let lower = hull.len() + 1;
-    for &p in points.iter().rev().skip(1) {
-        while hull.len() >= lower && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
-            hull.pop();
-        }
-        hull.push(p);
-    }
-    hull.pop();
-    hull
-}
-
-/// Clips the convex polygon `subject` to the convex polygon `clip` (both
-/// counter-clockwise): their intersection, empty when they do not overlap.
-pub fn clip_convex(subject: &[DVec2], clip: &[DVec2]) -> Vec<DVec2> {
-    let mut out: Vec<DVec2> = subject.to_vec();
-    let mut input = Vec::new();
-    for i in 0..clip.len() {
-        if out.is_empty() {
-            break;
-        }
-        let (a, b) = (clip[i], clip[(i + 1) % clip.len()]);
-        let side = |p: DVec2| (b - a).perp_dot(p - a);
-        std::mem::swap(&mut input, &mut out);
-        out.clear();
-        for k in 0..input.len() {
-            let (p, q) = (input[k], input[(k + 1) % input.len()]);
-            let (sp, sq) = (side(p), side(q));
-            if sp >= 0.0 {
-                out.push(p);
-            }
-            if (sp >= 0.0) != (sq >= 0.0) {
-                let t = sp / (sp - sq);
-                out.push(p + (q - p) * t);
-            }
-        }
-    }
-    if out.len() < 3 || signed_area(&out) <= 0.0 {
-        out.clear();
-    }
-    out
-}
-
 /// The x range where the horizontal line at `y` meets a convex polygon.
 fn span_at(poly: &[DVec2], y: f64) -> Option<(f64, f64)> {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -305,23 +230,6 @@ mod tests {
             DVec2::new(b, b),
             DVec2::new(a, b),
         ]
-    }
-
-    #[test]
-    fn hull_and_clip() {
-        let mut pts = vec![
-            DVec2::new(0.0, 0.0),
-            DVec2::new(1.0, 0.0),
-            DVec2::new(0.5, 0.5),
-            DVec2::new(1.0, 1.0),
-            DVec2::new(0.0, 1.0),
-        ];
-        let h = convex_hull(&mut pts);
-        assert_eq!(h.len(), 4);
-        assert!((signed_area(&h) - 1.0).abs() < 1e-12);
-        let c = clip_convex(&sq(0.0, 2.0), &sq(1.0, 3.0));
-        assert!((signed_area(&c) - 1.0).abs() < 1e-12);
-        assert!(clip_convex(&sq(0.0, 1.0), &sq(2.0, 3.0)).is_empty());
     }
 
     #[test]

@@ -28,7 +28,7 @@
 
 use glam::{DVec2, DVec3};
 
-use super::oracle_plane::{clip_convex, convex_hull};
+use crate::geom::polygon::{clip_convex, convex_hull};
 
 /// One of the six planes' frames: `w` along `sign * axis`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

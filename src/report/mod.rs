@@ -2,8 +2,8 @@
 //! method would draw, against a ground truth rendered by ray casting.
 //!
 //! - **Ground truth** ([`truth`]): an ID buffer of one ray per pixel
-//!   through the shared [`report_camera::Camera`]; per view the objects
-//!   seen and their pixel counts (the set `S_E`).
+//!   through the shared [`Camera`] ([`crate::render`]); per view the
+//!   objects seen and their pixel counts (the set `S_E`).
 //! - **Methods**, each giving the set `S_A` of objects to draw per view:
 //!   view-frustum culling ([`frustum_set`]: the objects whose bounding box
 //!   meets the frustum), the lazy occlusion grid of papers/002, the vis5d
@@ -17,19 +17,13 @@
 //! The command (`src/cli_report.rs`) runs the methods and writes the page,
 //! the JSON and the Markdown.
 
-pub mod report_camera;
-pub mod report_lazy;
-
 use glam::Vec3;
-use rand::{RngExt, SeedableRng};
-use rand_pcg::Pcg64;
 
 use crate::bitset::ObjectSet;
 use crate::geom::Aabb;
-use crate::query::View;
+use crate::render::{Camera, IdBuffer};
 use crate::scene::Scene;
 use crate::trace::Tracer;
-use report_camera::Camera;
 
 /// What the ground truth saw in one view.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -53,26 +47,14 @@ impl ViewTruth {
     }
 }
 
-/// Renders the ID buffer of `camera` (one ray per pixel centre, traced in
-/// parallel) and counts each object's pixels.
+/// Renders the ID buffer of `camera` ([`IdBuffer`]: one ray per pixel
+/// centre) and counts each object's pixels.
 pub fn truth(scene: &Scene, tracer: &Tracer, camera: &Camera) -> ViewTruth {
-    let rays = camera.pixel_rays();
-    let hits = tracer.closest_hits(&rays);
-    let mut counts = vec![0u64; scene.objects().len()];
-    let mut hit_pixels = 0;
-    for h in hits.iter().flatten() {
-        counts[h.object as usize] += 1;
-        hit_pixels += 1;
-    }
+    let ids = IdBuffer::render(tracer, camera);
     ViewTruth {
-        seen: counts
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| **c > 0)
-            .map(|(o, &c)| (o as u32, c))
-            .collect(),
-        hit_pixels,
-        pixels: rays.len() as u64,
+        seen: ids.object_pixels(scene.objects().len()),
+        hit_pixels: ids.hit_pixels(),
+        pixels: u64::from(ids.width()) * u64::from(ids.height()),
     }
 }
 
@@ -192,25 +174,10 @@ impl ViewMetrics {
     }
 }
 
-/// `n` random views (seeded): eyes uniform in `space`, directions uniform
-/// on the sphere, square field of view `fov_degrees`.
-pub fn random_views(space: &Aabb, n: usize, fov_degrees: f32, seed: u64) -> Vec<View> {
-    let mut rng = Pcg64::seed_from_u64(seed);
-    (0..n)
-        .map(|_| {
-            let eye = space.min
-                + (space.max - space.min) * Vec3::new(rng.random(), rng.random(), rng.random());
-            let z: f32 = rng.random_range(-1.0..1.0);
-            let a: f32 = rng.random_range(0.0..std::f32::consts::TAU);
-            let r = (1.0 - z * z).max(0.0).sqrt();
-            View::square(eye, Vec3::new(r * a.cos(), r * a.sin(), z), fov_degrees)
-        })
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::random_views;
     use crate::scene::procedural::{SceneKind, generate};
 
     #[test]

@@ -6,18 +6,11 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use vis5d::geom::Aabb;
 use vis5d::oracle::{Oracle, OracleParams};
+use vis5d::random::{uniform_direction, uniform_point};
 use vis5d::scene::{self, Scene};
 use vis5d::trace::{Ray, Tracer};
 
 use crate::committed;
-
-/// Uniform direction on the sphere.
-fn direction(rng: &mut Pcg64) -> Vec3 {
-    let z: f32 = rng.random_range(-1.0..1.0);
-    let a: f32 = rng.random_range(0.0..std::f32::consts::TAU);
-    let r = (1.0 - z * z).max(0.0).sqrt();
-    Vec3::new(r * a.cos(), r * a.sin(), z)
-}
 
 /// Casts `rays` random rays from random points of `cell` and returns the
 /// objects hit first that the oracle calls hidden, with a witness ray.
@@ -30,10 +23,7 @@ fn violations(
 ) -> Vec<(usize, Ray)> {
     let report = oracle.cell(cell, None);
     let batch: Vec<Ray> = (0..rays)
-        .map(|_| {
-            let t = Vec3::new(rng.random(), rng.random(), rng.random());
-            Ray::new(cell.min + (cell.max - cell.min) * t, direction(rng))
-        })
+        .map(|_| Ray::new(uniform_point(rng, cell), uniform_direction(rng)))
         .collect();
     let hits = tracer.closest_hits(&batch);
     let mut out = Vec::new();
@@ -170,10 +160,7 @@ fn the_gpu_oracle_is_never_wrong_and_close_to_the_cpu() {
             cpu_hidden += scene.objects().len() - cpu.visible.count();
             gpu_hidden += scene.objects().len() - on_gpu.visible.count();
             let rays: Vec<Ray> = (0..100_000)
-                .map(|_| {
-                    let t = Vec3::new(rng.random(), rng.random(), rng.random());
-                    Ray::new(cell.min + (cell.max - cell.min) * t, direction(&mut rng))
-                })
+                .map(|_| Ray::new(uniform_point(&mut rng, &cell), uniform_direction(&mut rng)))
                 .collect();
             for (ray, hit) in rays.iter().zip(tracer.closest_hits(&rays)) {
                 if let Some(h) = hit {

@@ -57,6 +57,10 @@ fn apartment_is_like_the_papers() {
 #[test]
 fn the_machine_is_closed_but_for_its_grating() {
     use glam::Vec3;
+    use rand::SeedableRng;
+    use rand_pcg::Pcg64;
+    use vis5d::geom::Aabb;
+    use vis5d::random::{uniform_direction, uniform_point};
     use vis5d::trace::{Ray, Tracer};
     let s = generate(SceneKind::Machine, 1, 1);
     let tracer = Tracer::new(&s);
@@ -70,22 +74,10 @@ fn the_machine_is_closed_but_for_its_grating() {
     // casing first, except those that pass through the grating's slots.
     let mut through = 0;
     let n = 20_000;
-    let mut rng = 12345u64;
-    let mut next = || {
-        rng = rng
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (rng >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut rng = Pcg64::seed_from_u64(12345);
     for _ in 0..n {
-        let z = next() * 2.0 - 1.0;
-        let a = next() * std::f32::consts::TAU;
-        let d = Vec3::new(
-            (1.0 - z * z).sqrt() * a.cos(),
-            (1.0 - z * z).sqrt() * a.sin(),
-            z,
-        );
-        let jitter = Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 0.6;
+        let d = uniform_direction(&mut rng);
+        let jitter = uniform_point(&mut rng, &Aabb::new(Vec3::splat(-0.3), Vec3::splat(0.3)));
         let (a, b) = (centre + d * far, centre + jitter);
         // A ray that slips through a slot may end in empty space inside.
         let hit = tracer.closest_hit(&Ray::segment(a, b));

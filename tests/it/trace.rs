@@ -5,15 +5,9 @@
 use glam::Vec3;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
+use vis5d::random::{uniform_direction as unit, uniform_point};
 use vis5d::scene::{self, Scene};
 use vis5d::trace::{Ray, Tracer, brute_force_closest_hit};
-
-fn unit(rng: &mut Pcg64) -> Vec3 {
-    let z = rng.random_range(-1.0..1.0f32);
-    let a = rng.random_range(0.0..std::f32::consts::TAU);
-    let r = (1.0 - z * z).sqrt();
-    Vec3::new(r * a.cos(), r * a.sin(), z)
-}
 
 /// Random rays of five kinds over `scene`, `n` of each.
 fn rays(scene: &Scene, n: usize, seed: u64) -> Vec<(&'static str, Ray)> {
@@ -21,7 +15,7 @@ fn rays(scene: &Scene, n: usize, seed: u64) -> Vec<(&'static str, Ray)> {
     let b = scene.bounds().expanded(0.05 * scene.bounds().diagonal());
     let diag = scene.bounds().diagonal();
     let objects = scene.objects().len();
-    let point = |rng: &mut Pcg64| b.lerp(Vec3::new(rng.random(), rng.random(), rng.random()));
+    let point = |rng: &mut Pcg64| uniform_point(rng, &b);
     let mut out = Vec::new();
     for _ in 0..n {
         let o = point(&mut rng);
@@ -125,7 +119,7 @@ fn a_sealed_room_sees_only_its_walls() {
     let mut rng = Pcg64::seed_from_u64(3);
     let inside = vis5d::geom::Aabb::new(Vec3::new(0.2, 0.2, 0.05), Vec3::new(10.2, 5.1, 2.55));
     for _ in 0..5_000 {
-        let o = inside.lerp(Vec3::new(rng.random(), rng.random(), rng.random()));
+        let o = uniform_point(&mut rng, &inside);
         let r = Ray::new(o, unit(&mut rng));
         let h = tracer
             .closest_hit(&r)

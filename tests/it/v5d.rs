@@ -7,11 +7,13 @@ use glam::Vec3;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use vis5d::bitset::ObjectSet;
-use vis5d::builder::{BuildParams, build, to_file, view_rays};
+use vis5d::builder::{BuildParams, build, to_file};
 use vis5d::codec::{self, CodecError, Coding, ReadLimits};
 use vis5d::geom::Aabb;
 use vis5d::geom::cell::{Cell, DIMS, direction_to_angles};
 use vis5d::query::{Pvs, View};
+use vis5d::random::{uniform_direction, uniform_point};
+use vis5d::render::Camera;
 use vis5d::scene::{self, Scene};
 use vis5d::trace::Tracer;
 use vis5d::tree::VisTree;
@@ -151,14 +153,8 @@ fn a_view_query_holds_every_pixel_rays_leaf_set() {
     let mut out = pvs.new_set();
     let mut sizes = 0;
     for k in 0..150 {
-        let eye = space.lerp(Vec3::new(rng.random(), rng.random(), rng.random()));
-        let z = rng.random_range(-1.0..1.0f32);
-        let a = rng.random_range(0.0..std::f32::consts::TAU);
-        let mut dir = Vec3::new(
-            (1.0 - z * z).sqrt() * a.cos(),
-            (1.0 - z * z).sqrt() * a.sin(),
-            z,
-        );
+        let eye = uniform_point(&mut rng, &space);
+        let mut dir = uniform_direction(&mut rng);
         if k % 10 == 0 {
             dir = [-Vec3::X, Vec3::Z, -Vec3::Z][k / 10 % 3]; // wrap-around and the poles
         }
@@ -166,9 +162,9 @@ fn a_view_query_holds_every_pixel_rays_leaf_set() {
         let view = View::square(eye, dir, fov);
         pvs.query_view(&view, &mut out);
         sizes += out.count();
-        let rays = view_rays(eye, dir, 32, fov);
         let _ = tracer;
-        for r in &rays {
+        let camera = Camera::new(&view, 32, 32).expect("a valid view");
+        for r in &camera.pixel_rays() {
             let (t, p) = direction_to_angles(r.dir);
             let leaf = tree.locate([eye.x, eye.y, eye.z, t, p]);
             assert!(

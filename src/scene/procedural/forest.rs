@@ -8,20 +8,14 @@ use glam::Vec3;
 use rand::RngExt;
 use rand_pcg::Pcg64;
 
+use crate::random::uniform_direction;
+
 use super::Model;
 use super::shapes::{push_box, push_cylinder, push_ellipsoid};
 
 const TREES: usize = 30;
 const SIZE: f32 = 60.0;
 const LEAVES: usize = 120;
-
-/// A unit vector uniform on the sphere.
-fn unit(rng: &mut Pcg64) -> Vec3 {
-    let z = rng.random_range(-1.0..1.0f32);
-    let a = rng.random_range(0.0..std::f32::consts::TAU);
-    let r = (1.0 - z * z).sqrt();
-    Vec3::new(r * a.cos(), r * a.sin(), z)
-}
 
 pub(super) fn generate(rng: &mut Pcg64) -> Model {
     let mut m = Model::default();
@@ -68,7 +62,7 @@ pub(super) fn generate(rng: &mut Pcg64) -> Model {
                 continue;
             }
             let c = centre + q * crown;
-            let (a, b) = (unit(rng), unit(rng));
+            let (a, b) = (uniform_direction(rng), uniform_direction(rng));
             let s = rng.random_range(0.15..0.35f32);
             leaves.push([c, c + a * s, c + b * s]);
         }

@@ -1,15 +1,29 @@
-//! The pinhole camera every method of a report shares: the ground truth's
-//! pixel rays, the occlusion grid's projection and the frustum test all
-//! use this one, so that a pixel means the same thing to each.
+//! The one camera and the one ground-truth renderer, shared by every part
+//! that looks at the scene through pixels: `vis5d build --verify-views`
+//! (the tree's pixel error), `vis5d report` (the ground truth, the frustum
+//! test and the lazy occlusion grid's projection) and the tests. A pixel
+//! means the same thing to each.
+//!
+//! - [`Camera`]: the pinhole camera of a [`View`] (the runtime query's view
+//!   description: eye, direction, up, fields of view). The up vector's
+//!   fallback for vertical views is [`View::square`]'s, and only there.
+//! - [`IdBuffer`]: the object seen through each pixel, by casting one ray
+//!   through each pixel's centre with the exact [`Tracer`].
+//! - [`random_views`]: seeded random views (eye uniform in a box,
+//!   direction uniform on the sphere).
 
 use glam::Vec3;
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
 
+use crate::geom::Aabb;
 use crate::query::View;
-use crate::trace::Ray;
+use crate::random::{uniform_direction, uniform_point};
+use crate::trace::{Ray, Tracer};
 
 /// A pinhole camera (pixels are square when `tan_x / tan_y` equals
-/// `width / height`, as for the square views of `vis5d report`): an orthonormal frame, the tangents of the
-/// half fields of view and the image size. Pixel `(i, j)` (column `i` from
+/// `width / height`, as for square views): an orthonormal frame, the
+/// tangents of the half fields of view and the image size. Pixel `(i, j)` (column `i` from
 /// the left, row `j` from the top) covers the image-plane square
 /// `x in [i, i + 1]`, `y in [j, j + 1]`; its centre ray goes through
 /// `(i + 0.5, j + 0.5)`.
@@ -105,6 +119,85 @@ impl Camera {
             z,
         )
     }
+}
+
+/// The object seen through each pixel of a camera's image: one ray through
+/// each pixel's centre, traced exactly (in parallel) to its closest hit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IdBuffer {
+    width: u32,
+    height: u32,
+    /// Row by row from the top; `None` where the ray hits nothing.
+    objects: Vec<Option<u32>>,
+}
+
+impl IdBuffer {
+    /// Renders `camera`'s image of the scene `tracer` was built for.
+    pub fn render(tracer: &Tracer, camera: &Camera) -> Self {
+        let hits = tracer.closest_hits(&camera.pixel_rays());
+        Self {
+            width: camera.width,
+            height: camera.height,
+            objects: hits.iter().map(|h| h.map(|h| h.object)).collect(),
+        }
+    }
+
+    /// Image width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Image height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// The object seen through pixel `(i, j)` (column, row from the top).
+    pub fn get(&self, i: u32, j: u32) -> Option<u32> {
+        self.objects[(j * self.width + i) as usize]
+    }
+
+    /// Every pixel as `((i, j), object)`, row by row from the top.
+    pub fn pixels(&self) -> impl Iterator<Item = ((u32, u32), Option<u32>)> + '_ {
+        let w = self.width;
+        self.objects
+            .iter()
+            .enumerate()
+            .map(move |(k, &o)| ((k as u32 % w, k as u32 / w), o))
+    }
+
+    /// Pixels whose ray hit something.
+    pub fn hit_pixels(&self) -> u64 {
+        self.objects.iter().flatten().count() as u64
+    }
+
+    /// The objects seen with their pixel counts, by object index, for a
+    /// scene of `objects` objects.
+    pub fn object_pixels(&self, objects: usize) -> Vec<(u32, u64)> {
+        let mut counts = vec![0u64; objects];
+        for &o in self.objects.iter().flatten() {
+            counts[o as usize] += 1;
+        }
+        counts
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| **c > 0)
+            .map(|(o, &c)| (o as u32, c))
+            .collect()
+    }
+}
+
+/// `n` random views (seeded): eyes uniform in `space`, directions uniform
+/// on the sphere ([`uniform_direction`]), square fields of view of
+/// `fov_degrees` ([`View::square`]).
+pub fn random_views(space: &Aabb, n: usize, fov_degrees: f32, seed: u64) -> Vec<View> {
+    let mut rng = Pcg64::seed_from_u64(seed);
+    (0..n)
+        .map(|_| {
+            let eye = uniform_point(&mut rng, space);
+            View::square(eye, uniform_direction(&mut rng), fov_degrees)
+        })
+        .collect()
 }
 
 #[cfg(test)]
