@@ -19,7 +19,7 @@ use glam::Vec3;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use vis5d::geom::Aabb;
-use vis5d::oracle::{Oracle, OracleParams};
+use vis5d::oracle::{Oracle, OracleParams, Rasteriser};
 use vis5d::random::{uniform_direction, uniform_point};
 use vis5d::trace::{Ray, Tracer};
 
@@ -41,8 +41,8 @@ fn main() -> ExitCode {
         return ExitCode::FAILURE;
     };
     let tracer = Tracer::new(&scene);
-    let oracle =
-        Oracle::new(&scene, OracleParams::default()).expect("default parameters are valid");
+    let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::best())
+        .expect("default parameters are valid");
     let bounds = scene.bounds();
     let triangles: usize = scene.objects().iter().map(|o| o.triangle_count()).sum();
     let mut rng = Pcg64::seed_from_u64(7);

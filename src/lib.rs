@@ -62,21 +62,34 @@
 //!
 //! ## Modules
 //!
+//! Each paper has its module, named for what it does:
+//!
+//! | module | paper | role |
+//! |---|---|---|
+//! | [`sprt`] | papers/003 sec. 5 | the beta-function sequential test |
+//! | [`builder`] | papers/003 sec. 4-5 | the 5D k-d tree built by ray sampling |
+//! | [`codec`] | papers/003 sec. 6 | the three set codings and the `.v5d` file |
+//! | [`query`] | papers/003 sec. 7 | [`query::Pvs`]: range and view queries |
+//! | [`oracle`] | papers/001 | the conservative extended-projection oracle |
+//! | [`lazy_grid`] | papers/002 | the lazy occlusion grid (an online baseline) |
+//!
 //! Runtime side (always built): [`geom`] (boxes, 5D cells), [`bitset`],
-//! [`tree`] (the in-memory tree), [`codec`] (codings and the file),
-//! [`query`] (the [`query::Pvs`] range and view queries), [`atomic_write`].
+//! [`tree`] (the in-memory tree), [`codec`], [`query`], [`atomic_write`],
+//! [`invariant`] (the error of every `validate()`).
 //!
 //! Builder side (feature `builder`): [`scene`] (OBJ/glTF loading,
-//! procedural scenes), [`trace`] (the BVH tracer), [`sample`], [`sprt`],
-//! [`builder`], [`oracle`] (the conservative extended-projection oracle),
-//! [`report`] (comparison of methods against a ray-cast ground truth).
+//! procedural scenes), [`trace`] (the exact BVH tracer), [`random`] (the
+//! shared random draws), [`sample`], [`sprt`], [`builder`], [`render`] (the
+//! one camera and the ray-cast ID buffer), [`oracle`], [`lazy_grid`],
+//! [`report`] (the methods compared against a ray-cast ground truth).
 //!
 //! ## Features
 //!
 //! - default (`cli`): the `vis5d` command-line tool and everything below.
 //! - `builder`: the preprocess: scene loaders, procedural scenes, tracer,
-//!   SPRT, tree builder, the oracle on the CPU.
-//! - `gpu`: the oracle's wgpu rasteriser ([`oracle::oracle_gpu`]).
+//!   SPRT, tree builder, the oracle on the CPU, the lazy grid, reports.
+//! - `gpu`: the oracle's wgpu rasteriser ([`oracle::GpuRasteriser`]).
+//! - `serde`: `serde::Serialize` on the report's figures.
 //! - none (`default-features = false`): the runtime side only, free of
 //!   obvhs, rayon, gltf, tobj, statrs and clap.
 

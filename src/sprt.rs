@@ -40,6 +40,36 @@ pub struct SprtParams {
     pub max_rays: u32,
 }
 
+/// Parameters of the test outside their domain.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum SprtError {
+    /// `s_thresh` is not a fraction strictly between 0 and 1.
+    #[error("the SPRT's s_thresh must be in (0, 1), not {0}")]
+    Threshold(f64),
+    /// The odds bounds are not `0 < B < A < inf`.
+    #[error(
+        "the SPRT's odds bounds must satisfy 0 < B < A < inf (B rejects, A accepts), \
+         not B = {reject} and A = {accept}"
+    )]
+    OddsBounds {
+        /// B.
+        reject: f64,
+        /// A.
+        accept: f64,
+    },
+    /// The prior's shape parameters are not positive and finite.
+    #[error("the SPRT's prior Beta(a, b) needs finite a, b > 0, not ({a}, {b})")]
+    Prior {
+        /// a.
+        a: f64,
+        /// b.
+        b: f64,
+    },
+    /// The ray cap is 0.
+    #[error("the SPRT's ray cap must be at least 1")]
+    RayCap,
+}
+
 impl SprtParams {
     /// The paper's worked example: s_thresh 0.01, A 50, B 0.2, with the
     /// Beta(1, 50) prior under which the example holds, no practical cap.
@@ -52,26 +82,27 @@ impl SprtParams {
         max_rays: u32::MAX,
     };
 
-    /// Checks that every parameter is in its domain; says which is not.
-    pub fn check(&self) -> Result<(), String> {
+    /// Checks that every parameter is in its domain; the error says which
+    /// is not.
+    pub fn validate(&self) -> Result<(), SprtError> {
         if !(self.s_thresh > 0.0 && self.s_thresh < 1.0) {
-            return Err(format!("s_thresh must be in (0, 1), not {}", self.s_thresh));
+            return Err(SprtError::Threshold(self.s_thresh));
         }
         if !(self.reject > 0.0 && self.reject < self.accept && self.accept.is_finite()) {
-            return Err(format!(
-                "the odds bounds must satisfy 0 < B < A < inf, not B = {} and A = {}",
-                self.reject, self.accept
-            ));
+            return Err(SprtError::OddsBounds {
+                reject: self.reject,
+                accept: self.accept,
+            });
         }
         let positive = |x: f64| x > 0.0 && x.is_finite();
         if !(positive(self.prior_a) && positive(self.prior_b)) {
-            return Err(format!(
-                "the prior Beta(a, b) needs a, b > 0, not ({}, {})",
-                self.prior_a, self.prior_b
-            ));
+            return Err(SprtError::Prior {
+                a: self.prior_a,
+                b: self.prior_b,
+            });
         }
         if self.max_rays == 0 {
-            return Err("the ray cap must be at least 1".into());
+            return Err(SprtError::RayCap);
         }
         Ok(())
     }
@@ -290,7 +321,7 @@ mod tests {
     #[test]
     fn bad_parameters_are_refused() {
         let ok = SprtParams::PAPER_EXAMPLE;
-        assert!(ok.check().is_ok());
+        assert!(ok.validate().is_ok());
         for bad in [
             SprtParams {
                 s_thresh: 0.0,
@@ -308,7 +339,7 @@ mod tests {
             },
             SprtParams { max_rays: 0, ..ok },
         ] {
-            assert!(bad.check().is_err(), "{bad:?}");
+            assert!(bad.validate().is_err(), "{bad:?}");
         }
     }
 }

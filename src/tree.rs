@@ -17,6 +17,7 @@
 
 use crate::bitset::ObjectSet;
 use crate::geom::cell::{Cell, DIMS, grid_value};
+use crate::invariant::InvariantError;
 
 /// The deepest a tree may be: the builder refuses deeper settings and the
 /// decoder refuses deeper files, so recursion over a tree is bounded.
@@ -207,7 +208,12 @@ impl VisTree {
 
     /// Checks the invariants of the module docs; returns the first broken
     /// one.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvariantError> {
+        self.check_invariants()
+            .map_err(|what| InvariantError::new("tree", what))
+    }
+
+    fn check_invariants(&self) -> Result<(), String> {
         if self.nodes.is_empty() {
             return Err("the tree has no node".into());
         }
@@ -357,7 +363,7 @@ mod tests {
     fn validate_catches_broken_trees() {
         let mut t = small_tree();
         t.nodes[0].set.remove(2);
-        assert!(t.validate().unwrap_err().contains("subset"));
+        assert!(t.validate().unwrap_err().what.contains("subset"));
         let mut t = small_tree();
         t.nodes[0].set = set(3, &[0, 1]);
         t.nodes[2].set = set(3, &[1]);
@@ -368,7 +374,7 @@ mod tests {
             code: 4,
             above: 2,
         });
-        assert!(t.validate().unwrap_err().contains("code"));
+        assert!(t.validate().unwrap_err().what.contains("code"));
         let mut t = small_tree();
         t.nodes[0].split = Some(Split {
             dim: 0,

@@ -89,13 +89,18 @@ impl fmt::Display for Coding {
     }
 }
 
+/// A coding name that is not `leaf`, `parent` or `sibling`.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown coding {0:?}: expected leaf, parent or sibling")]
+pub struct UnknownCoding(pub String);
+
 impl FromStr for Coding {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownCoding;
+    fn from_str(s: &str) -> Result<Self, UnknownCoding> {
         Coding::ALL
             .into_iter()
             .find(|c| c.name() == s)
-            .ok_or_else(|| format!("unknown coding {s:?}: expected leaf, parent or sibling"))
+            .ok_or_else(|| UnknownCoding(s.to_owned()))
     }
 }
 
@@ -255,8 +260,9 @@ pub fn decode(
         )));
     }
     let tree = VisTree::from_parts(root, grid_bits, objects, d.nodes);
-    tree.validate()
-        .map_err(|e| CodecError::Corrupt(format!("the decoded tree is inconsistent: {e}")))?;
+    tree.validate().map_err(|e| {
+        CodecError::Corrupt(format!("the decoded tree is inconsistent: {}", e.what))
+    })?;
     Ok(tree)
 }
 

@@ -12,7 +12,7 @@ pub use codec_file::{
     FileObject, MAGIC, MIN_FILE_LEN, ReadLimits, V5dFile, VERSION, crc32, geometry_fingerprint,
     read_file, write_file,
 };
-pub use codec_tree::{CodeSize, Coding, DecodeLimits, code_size, decode, encode};
+pub use codec_tree::{CodeSize, Coding, DecodeLimits, UnknownCoding, code_size, decode, encode};
 
 /// Why a `.v5d` file cannot be read. Messages say what is wrong; the
 /// caller adds the file's name.

@@ -8,10 +8,10 @@
 //! exposes sampling misses.
 //!
 //! Per cell, for each of six planes around it (one per face, see
-//! [`oracle_project::Frame`]):
+//! `oracle_project.rs`):
 //!
 //! 1. **Occluder selection.** The scene's convex occluders
-//!    ([`oracle_occluders`]) in front of the face are ranked by the solid
+//!    (`oracle_occluders.rs`) in front of the face are ranked by the solid
 //!    angle they subtend from the cell's centre; occluders of objects
 //!    already hidden from the parent cell are skipped.
 //! 2. **Plane placement.** Candidate positions just behind each of the
@@ -37,14 +37,35 @@
 //!
 //! Why each step is conservative is argued where it is done; the property
 //! test in `tests/it/oracle.rs` checks it with rays.
+//!
+//! Depth Maps are rasterised by a [`Rasteriser`]: the GPU ([`GpuRasteriser`],
+//! wgpu, stencil counting) where an adapter exists, else the CPU reference
+//! ([`cpu_rasterise`]). [`check_tree`] cross-checks a built tree against the
+//! oracle (`vis5d check`).
+//!
+//! Files: `oracle_occluders.rs` (convex occluders and sliceable solids of
+//! the scene), `oracle_project.rs` (the six plane frames, Projections of
+//! occluders and occludees), `oracle_plane.rs` (Depth Maps, the CPU
+//! rasteriser, the max pyramid), `oracle_slice.rs` (slices of solids, sec.
+//! 3.3), `oracle_gpu.rs` with `oracle_gpu.wgsl` (the GPU rasteriser),
+//! `oracle_raster.rs` (the GPU-or-CPU choice), `oracle_check.rs` (the
+//! cross-check).
 
-pub mod oracle_check;
+mod oracle_check;
 #[cfg(feature = "gpu")]
-pub mod oracle_gpu;
-pub mod oracle_occluders;
-pub mod oracle_plane;
-pub mod oracle_project;
-pub mod oracle_slice;
+mod oracle_gpu;
+mod oracle_occluders;
+mod oracle_plane;
+mod oracle_project;
+mod oracle_raster;
+mod oracle_slice;
+
+pub use oracle_check::{CheckParams, CheckReport, LeafCheck, Suspect, Violation, check_tree};
+#[cfg(feature = "gpu")]
+pub use oracle_gpu::{GpuError, GpuRasteriser};
+pub use oracle_occluders::OccluderCounts;
+pub use oracle_plane::{ProjectedOccluder, cpu_rasterise};
+pub use oracle_raster::Rasteriser;
 
 use std::time::{Duration, Instant};
 
@@ -54,8 +75,8 @@ use crate::bitset::ObjectSet;
 use crate::geom::polygon::{convex_hull, signed_area};
 use crate::geom::{Aabb, BoxTree};
 use crate::scene::Scene;
-use oracle_occluders::{Occluder, OccluderCounts, SlicedSolid};
-use oracle_plane::{DepthMap, ProjectedOccluder, cpu_rasterise};
+use oracle_occluders::{Occluder, SlicedSolid};
+use oracle_plane::DepthMap;
 use oracle_project::{
     Frame, clip_above, clip_below, corners, improved_rect, occludee_rect, occluder_views, project,
 };
@@ -96,35 +117,54 @@ impl Default for OracleParams {
     }
 }
 
+/// Why the oracle cannot be set up.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum OracleError {
+    /// A setting is outside its domain.
+    #[error("invalid oracle setting: {name} must be {expected}, not {value}")]
+    Parameter {
+        /// The setting (as `OracleParams` names it).
+        name: &'static str,
+        /// What it must be.
+        expected: &'static str,
+        /// What it was.
+        value: String,
+    },
+}
+
 impl OracleParams {
-    /// Checks the settings; the message names the bad one.
-    pub fn validate(&self) -> Result<(), String> {
+    /// Checks the settings; the error names the bad one.
+    pub fn validate(&self) -> Result<(), OracleError> {
+        let bad = |name, expected, value: &dyn std::fmt::Display| OracleError::Parameter {
+            name,
+            expected,
+            value: value.to_string(),
+        };
+        let power = "a power of two in 4..=4096";
         if !self.resolution.is_power_of_two() || !(4..=4096).contains(&self.resolution) {
-            return Err(format!(
-                "the depth map resolution must be a power of two in 4..=4096, not {}",
-                self.resolution
-            ));
+            return Err(bad("resolution", power, &self.resolution));
         }
         if !self.placement_resolution.is_power_of_two()
             || !(4..=4096).contains(&self.placement_resolution)
         {
-            return Err(format!(
-                "the placement resolution must be a power of two in 4..=4096, not {}",
-                self.placement_resolution
+            return Err(bad(
+                "placement_resolution",
+                power,
+                &self.placement_resolution,
             ));
         }
         if !(self.extension.is_finite() && self.extension >= 0.0) {
-            return Err(format!(
-                "the plane extension must be finite and >= 0, not {}",
-                self.extension
-            ));
+            return Err(bad("extension", "finite and >= 0", &self.extension));
         }
-        if self.plane_candidates == 0
-            || self.placement_occluders == 0
-            || self.max_occluders == 0
-            || self.planes_per_face == 0
-        {
-            return Err("the occluder and plane counts must be at least 1".into());
+        for (name, n) in [
+            ("plane_candidates", self.plane_candidates),
+            ("placement_occluders", self.placement_occluders),
+            ("max_occluders", self.max_occluders),
+            ("planes_per_face", self.planes_per_face),
+        ] {
+            if n == 0 {
+                return Err(bad(name, "at least 1", &n));
+            }
         }
         Ok(())
     }
@@ -174,7 +214,7 @@ pub struct CellReport {
     pub hidden_by_parent: usize,
     /// Objects whose box meets the cell (never tested).
     pub touching: usize,
-    /// Per plane, in [`Frame::ALL`] order; planes with no occluder in
+    /// Per plane, in the order +x, -x, +y, -y, +z, -z; planes with no occluder in
     /// front are left out.
     pub planes: Vec<PlaneReport>,
     /// Time by stage.
@@ -190,11 +230,17 @@ pub struct Oracle<'a> {
     counts: OccluderCounts,
     hierarchy: BoxTree,
     params: OracleParams,
+    rasteriser: Rasteriser,
 }
 
 impl<'a> Oracle<'a> {
-    /// Prepares the oracle for a scene.
-    pub fn new(scene: &'a Scene, params: OracleParams) -> Result<Self, String> {
+    /// Prepares the oracle for a scene, its Depth Maps made by
+    /// `rasteriser` ([`Rasteriser::best`]: the GPU where there is one).
+    pub fn new(
+        scene: &'a Scene,
+        params: OracleParams,
+        rasteriser: Rasteriser,
+    ) -> Result<Self, OracleError> {
         params.validate()?;
         let oracle_occluders::Extracted {
             occluders,
@@ -209,6 +255,7 @@ impl<'a> Oracle<'a> {
             counts,
             hierarchy: BoxTree::new(&boxes),
             params,
+            rasteriser,
         })
     }
 
@@ -220,6 +267,11 @@ impl<'a> Oracle<'a> {
     /// The settings.
     pub fn params(&self) -> &OracleParams {
         &self.params
+    }
+
+    /// Where the Depth Maps are rasterised.
+    pub fn rasteriser(&self) -> &Rasteriser {
+        &self.rasteriser
     }
 
     /// How the objects became occluders.
@@ -238,16 +290,19 @@ impl<'a> Oracle<'a> {
         self.solids.len()
     }
 
-    /// The objects that may be visible from some point of `cell`, on the
-    /// CPU. `parent_hidden`, the objects proved hidden from a cell holding
-    /// this one, are taken as hidden and skipped as occluders.
+    /// The objects that may be visible from some point of `cell`, the
+    /// Depth Maps made by the oracle's [`Rasteriser`]. `parent_hidden`,
+    /// the objects proved hidden from a cell holding this one, are taken
+    /// as hidden and skipped as occluders.
     pub fn cell(&self, cell: &Aabb, parent_hidden: Option<&ObjectSet>) -> CellReport {
-        self.cell_with(cell, parent_hidden, &mut |n, occ| cpu_rasterise(n, occ))
+        self.cell_with(cell, parent_hidden, &mut |n, occ| {
+            self.rasteriser.rasterise(n, occ)
+        })
     }
 
-    /// [`Oracle::cell`] with the Depth Maps made by `rasterise` (the GPU's,
-    /// or the CPU reference): it gets the resolution and the occluders and
-    /// returns the level-0 map (see [`cpu_rasterise`]).
+    /// [`Oracle::cell`] with the Depth Maps made by `rasterise` instead
+    /// (tests compare rasterisers this way): it gets the resolution and
+    /// the occluders and returns the level-0 map (see [`cpu_rasterise`]).
     pub fn cell_with(
         &self,
         cell: &Aabb,

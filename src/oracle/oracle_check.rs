@@ -150,7 +150,7 @@ impl CheckReport {
 
 /// Checks `tree` (built for the oracle's scene) against the oracle, calling
 /// `progress(done, total)` after each oracle cell and each leaf's rays.
-pub fn check(
+pub fn check_tree(
     oracle: &Oracle,
     tracer: &Tracer,
     tree: &VisTree,

@@ -44,7 +44,9 @@ pub struct Occluder {
     pub min: DVec3,
     /// Its bounding box.
     pub max: DVec3,
-    /// Whether it is a closed convex solid (else a planar polygon).
+    /// Whether it is a closed convex solid (else a planar polygon): for
+    /// tests and debugging, nothing depends on it.
+    #[cfg_attr(not(test), allow(dead_code))]
     pub solid: bool,
 }
 

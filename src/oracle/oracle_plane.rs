@@ -109,6 +109,7 @@ pub struct DepthMap {
 
 impl DepthMap {
     /// An empty map (every pixel +inf: nothing occludes).
+    #[cfg(test)]
     pub fn new(min: DVec2, max: DVec2, n: usize) -> Self {
         debug_assert!(n.is_power_of_two());
         Self {
@@ -119,17 +120,14 @@ impl DepthMap {
         }
     }
 
-    /// The plane rectangle.
-    pub fn rect(&self) -> (DVec2, DVec2) {
-        (self.min, self.max)
-    }
-
+    /// A pixel's size on the plane.
     fn pixel(&self) -> DVec2 {
         (self.max - self.min) / self.n as f64
     }
 
     /// A plane point in pixel coordinates (pixel `(i, j)` covers
     /// `[i, i + 1] x [j, j + 1]`).
+    #[cfg(test)]
     pub fn to_pixels(&self, p: DVec2) -> DVec2 {
         (p - self.min) / self.pixel()
     }
@@ -148,7 +146,9 @@ impl DepthMap {
 
     /// Writes `depth` into the pixels the convex counter-clockwise `poly`
     /// (in plane coordinates) covers entirely, where it is smaller than
-    /// what is there; returns how many pixels it covers.
+    /// what is there; returns how many pixels it covers (the CPU
+    /// rasteriser's rule; tests draw with it).
+    #[cfg(test)]
     pub fn draw_occluder(&mut self, poly: &[DVec2], depth: f64) -> usize {
         let px: Vec<DVec2> = poly.iter().map(|&p| self.to_pixels(p)).collect();
         draw_pixels(&mut self.levels[0], self.n, &px, depth)

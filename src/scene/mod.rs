@@ -31,6 +31,7 @@ use glam::Vec3;
 use rand::{Rng, RngExt};
 
 use crate::geom::Aabb;
+use crate::invariant::InvariantError;
 
 pub use scene_builder::SceneBuilder;
 pub use write_obj::{write_obj, write_obj_file};
@@ -298,7 +299,12 @@ impl Scene {
 
     /// Checks the invariants listed in the module docs; returns the first
     /// broken one. Tests call it on every scene they make.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvariantError> {
+        self.check_invariants()
+            .map_err(|what| InvariantError::new("scene", what))
+    }
+
+    fn check_invariants(&self) -> Result<(), String> {
         if self.objects.is_empty() || self.triangles.is_empty() {
             return Err("the scene has no objects or no triangles".into());
         }

@@ -87,7 +87,11 @@ fn errors_name_the_file_and_fail() {
         ),
     ] {
         let out = vis5d(&args);
-        assert!(!out.status.success(), "{args:?}");
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: usage and runtime errors exit with 2"
+        );
         let err = text(&out.stderr);
         assert!(err.contains(want), "{args:?}: {err}");
     }
@@ -181,7 +185,11 @@ fn build_refuses_bad_flags() {
         (vec!["build", "missing.obj"], "missing.obj: cannot read"),
     ] {
         let out = vis5d(&args);
-        assert!(!out.status.success(), "{args:?}");
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: usage and runtime errors exit with 2"
+        );
         let err = text(&out.stderr);
         assert!(err.contains(want), "{args:?}: {err}");
     }
@@ -241,7 +249,7 @@ fn build_writes_next_to_the_model_and_stat_and_query_read_it() {
     let out = vis5d(&[&q[..], &["--scene", model.to_str().unwrap()]].concat());
     assert!(out.status.success(), "{}", text(&out.stderr));
     let out = vis5d(&[&q[..], &["--scene", "scenes/city.obj"]].concat());
-    assert!(!out.status.success());
+    assert_eq!(out.status.code(), Some(2));
     assert!(
         text(&out.stderr).contains("another version of the scene"),
         "{}",
@@ -301,7 +309,11 @@ fn query_and_stat_refuse_bad_input() {
         (vec!["query", "nope.v5d", "--pos", "0,0,0"], "--dir"),
     ] {
         let out = vis5d(&args);
-        assert!(!out.status.success(), "{args:?}");
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: usage and runtime errors exit with 2"
+        );
         assert!(
             text(&out.stderr).contains(want),
             "{args:?}: {}",
@@ -323,7 +335,7 @@ fn query_and_stat_refuse_bad_input() {
         "--views",
         views.to_str().unwrap(),
     ]);
-    assert!(!out.status.success());
+    assert_eq!(out.status.code(), Some(2));
     assert!(
         text(&out.stderr).contains("views.json"),
         "{}",

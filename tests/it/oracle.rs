@@ -5,7 +5,7 @@ use glam::Vec3;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use vis5d::geom::Aabb;
-use vis5d::oracle::{Oracle, OracleParams};
+use vis5d::oracle::{Oracle, OracleParams, Rasteriser};
 use vis5d::random::{uniform_direction, uniform_point};
 use vis5d::scene::{self, Scene};
 use vis5d::trace::{Ray, Tracer};
@@ -73,7 +73,8 @@ fn cells(scene: &Scene, rng: &mut Pcg64) -> Vec<(String, Aabb)> {
 fn check_scene(name: &str, rays: usize) {
     let scene = scene::load(committed(name)).expect("committed scene loads");
     let tracer = Tracer::new(&scene);
-    let oracle = Oracle::new(&scene, OracleParams::default()).expect("default parameters");
+    let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu())
+        .expect("default parameters");
     let mut rng = Pcg64::seed_from_u64(0x0ac1e);
     let mut culled = Vec::new();
     for (label, cell) in cells(&scene, &mut rng) {
@@ -122,8 +123,8 @@ fn never_wrong_on_machine() {
 
 /// The GPU rasteriser, or `None` (skip) without an adapter, unless
 /// `VIS5D_REQUIRE_GPU` is set (CI sets it: there the GPU path must run).
-fn gpu() -> Option<vis5d::oracle::oracle_gpu::GpuRasteriser> {
-    match vis5d::oracle::oracle_gpu::GpuRasteriser::new() {
+fn gpu() -> Option<vis5d::oracle::GpuRasteriser> {
+    match vis5d::oracle::GpuRasteriser::new() {
         Ok(g) => Some(g),
         Err(e) => {
             assert!(
@@ -145,7 +146,8 @@ fn the_gpu_oracle_is_never_wrong_and_close_to_the_cpu() {
     for name in ["city.obj", "office.obj"] {
         let scene = scene::load(committed(name)).expect("committed scene loads");
         let tracer = Tracer::new(&scene);
-        let oracle = Oracle::new(&scene, OracleParams::default()).expect("default parameters");
+        let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu())
+            .expect("default parameters");
         let mut rng = Pcg64::seed_from_u64(0x69f0);
         let (mut cpu_hidden, mut gpu_hidden) = (0, 0);
         for (label, cell) in cells(&scene, &mut rng) {
@@ -244,7 +246,11 @@ fn oracle_command_reports_and_refuses_bad_input() {
         ),
     ] {
         let out = vis5d(&args);
-        assert!(!out.status.success(), "{args:?}");
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: usage and runtime errors exit with 2"
+        );
         assert!(
             text(&out.stderr).contains(message),
             "{args:?}: {}",
@@ -285,7 +291,7 @@ fn check_finds_no_violations_and_catches_a_lying_oracle() {
     }
     // Another scene's tree is refused.
     let out = vis5d(&["check", "scenes/apartment.obj", v5d.to_str().unwrap()]);
-    assert!(!out.status.success());
+    assert_eq!(out.status.code(), Some(2));
     assert!(
         text(&out.stderr).contains("another scene"),
         "{}",
@@ -297,8 +303,8 @@ fn check_finds_no_violations_and_catches_a_lying_oracle() {
     let bytes = std::fs::read(&v5d).unwrap();
     let file = vis5d::codec::read_file(&bytes, vis5d::codec::ReadLimits::default()).unwrap();
     let tracer = Tracer::new(&scene);
-    let oracle = Oracle::new(&scene, OracleParams::default()).unwrap();
-    let params = vis5d::oracle::oracle_check::CheckParams {
+    let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    let params = vis5d::oracle::CheckParams {
         sample: Some(5),
         burst: 200,
         truth_rays: 512,
@@ -307,7 +313,7 @@ fn check_finds_no_violations_and_catches_a_lying_oracle() {
     let objects = scene.objects().len();
     let mut lying =
         |_: &Aabb, _: Option<&vis5d::bitset::ObjectSet>| vis5d::bitset::ObjectSet::new(objects);
-    let report = vis5d::oracle::oracle_check::check(
+    let report = vis5d::oracle::check_tree(
         &oracle,
         &tracer,
         &file.tree,
@@ -419,7 +425,7 @@ fn review_counterexamples_stay_fixed() {
     ];
     for (label, scene, cell, ray) in cases {
         let tracer = Tracer::new(&scene);
-        let oracle = Oracle::new(&scene, OracleParams::default()).unwrap();
+        let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
         let report = oracle.cell(&cell, None);
         let hit = tracer
             .closest_hit(&ray)
@@ -439,7 +445,7 @@ fn review_counterexamples_stay_fixed() {
         quad_x(2.0, 128.0),
         boxed(Vec3::new(5.0, -0.3, -0.7), Vec3::new(6.0, 0.9, 0.4)),
     ]);
-    let oracle = Oracle::new(&scene, OracleParams::default()).unwrap();
+    let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
     for cell in [
         Aabb::new(Vec3::new(f32::NAN, -0.5, -0.5), Vec3::new(-9.0, 0.5, 0.5)),
         Aabb::new(Vec3::new(-9.0, -0.5, -0.5), Vec3::new(-10.0, 0.5, 0.5)),

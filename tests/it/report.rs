@@ -162,7 +162,11 @@ fn report_takes_a_tree_and_a_camera_path_and_refuses_bad_input() {
         ),
     ] {
         let out = vis5d(&args);
-        assert!(!out.status.success(), "{args:?}");
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: usage and runtime errors exit with 2"
+        );
         assert!(
             text(&out.stderr).contains(message),
             "{args:?}: {}",

@@ -1,96 +1,17 @@
-//! `vis5d report`: the methods side by side on the user's scene, as a page
-//! (`index.html`, tables and SVG plots, no JavaScript), `report.json` with
-//! every figure and `report.md`.
+//! The report's outputs: `report.json` (every figure), `report.md` (the
+//! tables) and `index.html` (the tables and SVG plots, no JavaScript),
+//! from an [`Experiment`].
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::path::Path;
 
-use anyhow::{Context, Result, anyhow, bail};
-use clap::Args;
+use anyhow::{Context, Result, anyhow};
 use plotters::prelude::*;
 use serde::Serialize;
-use vis5d::bitset::ObjectSet;
-use vis5d::builder::{self, BuildParams};
-use vis5d::codec::{self, Coding, code_size};
-use vis5d::geom::Aabb;
-use vis5d::lazy_grid::{GridParams, LazyGrid};
-use vis5d::oracle::{Oracle, OracleParams};
-use vis5d::query::{Pvs, View};
-use vis5d::render::{Camera, random_views};
-use vis5d::report::{ViewMetrics, ViewTruth, frustum_set, truth};
+use vis5d::codec::{Coding, V5dFile, code_size};
+use vis5d::query::View;
+use vis5d::report::{Experiment, GridCost, MethodSummary, ReportParams};
 use vis5d::scene::Scene;
-use vis5d::trace::Tracer;
-
-use crate::{load_scene, progress_bar, read_v5d, read_views};
-
-#[derive(Args, Debug)]
-pub struct ReportArgs {
-    /// The scene file (.obj, .gltf or .glb).
-    file: PathBuf,
-    /// The folder to write index.html, report.json and report.md into
-    /// (created if missing).
-    #[arg(short, long, value_name = "DIR")]
-    output: PathBuf,
-    /// A tree built for the scene; without it, one is built with the
-    /// default parameters (and its build time and rays are reported).
-    #[arg(long, value_name = "FILE.v5d")]
-    pvs: Option<PathBuf>,
-    /// The views: a JSON list as for `vis5d query --views` (a camera
-    /// path); without it, `--random` views.
-    #[arg(long, value_name = "VIEWS.json")]
-    views: Option<PathBuf>,
-    /// How many random views (eye uniform in the tree's view box,
-    /// direction uniform) when no `--views` file is given.
-    #[arg(long, default_value_t = 50)]
-    random: usize,
-    /// Field of view of the random views, degrees.
-    #[arg(long, default_value_t = 90.0)]
-    fov: f32,
-    /// Seed of the random views.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Pixels on a side of the ground-truth images.
-    #[arg(long, default_value_t = 512)]
-    resolution: u32,
-    /// Size of the oracle's cell around each eye, as a share of the
-    /// scene's diagonal (a cube).
-    #[arg(long, default_value_t = 0.01)]
-    oracle_cell: f32,
-    /// Leave the oracle out (it is the slowest method).
-    #[arg(long)]
-    no_oracle: bool,
-    /// Cell size of the lazy occlusion grid, in pixels (papers/002 used
-    /// 32 x 32).
-    #[arg(long, default_value_t = 32)]
-    grid_cell: u32,
-}
-
-/// One method's figures over the views. Q_u, Q_o and the pixel error
-/// are means over the views that show something (undefined otherwise).
-#[derive(Serialize)]
-struct MethodSummary {
-    mean_objects: f64,
-    max_objects: usize,
-    mean_triangles: f64,
-    max_triangles: u64,
-    /// Triangles after frustum culling over triangles drawn, summed over
-    /// the views (the papers' geometry ratio); `None` when the method
-    /// draws no triangle at all.
-    geometry_ratio: Option<f64>,
-    mean_pixel_error: f64,
-    worst_pixel_error: f64,
-    /// The view with the worst pixel error (its index).
-    worst_view: usize,
-    /// Misses summed over the views (an object missed in 3 views counts 3).
-    missed_objects: usize,
-    /// Distinct objects missed in some view.
-    distinct_missed_objects: usize,
-    views_with_misses: usize,
-    mean_q_u: f64,
-    mean_q_o: f64,
-    mean_ms_per_view: f64,
-}
 
 #[derive(Serialize)]
 struct ViewJson {
@@ -143,18 +64,6 @@ struct TreeJson {
     codings: Vec<CodingJson>,
 }
 
-/// The lazy grid's costs for one view, lazy and busy (papers/002 Fig. 8).
-#[derive(Serialize)]
-struct GridCost {
-    lazy_pixel_queries: u64,
-    busy_pixel_queries: u64,
-    lazy_cell_updates: u64,
-    busy_cell_updates: u64,
-    boxes_tested: u64,
-    lazy_ms: f64,
-    busy_ms: f64,
-}
-
 #[derive(Serialize)]
 struct ReportJson {
     scene: String,
@@ -170,205 +79,64 @@ struct ReportJson {
     grid_costs: Vec<GridCost>,
 }
 
-struct Method {
-    name: &'static str,
-    description: &'static str,
-    per_view: Vec<ViewMetrics>,
-    /// Per view, the objects seen but not drawn.
-    missed: Vec<Vec<u32>>,
+/// Where the report's tree came from, for the page.
+pub struct TreeSource {
+    /// A file's path, or how it was built.
+    pub source: String,
+    /// Seconds to build it, when it was built here.
+    pub build_seconds: Option<f64>,
+    /// Rays its build cast, when it was built here.
+    pub rays: Option<u64>,
 }
 
-impl Method {
-    fn new(name: &'static str, description: &'static str) -> Self {
-        Self {
-            name,
-            description,
-            per_view: Vec::new(),
-            missed: Vec::new(),
-        }
-    }
-
-    /// Records the set `drawn` of one view, taking `seconds`.
-    fn record(&mut self, scene: &Scene, truth: &ViewTruth, drawn: &ObjectSet, seconds: f64) {
-        self.per_view
-            .push(ViewMetrics::of(scene, truth, drawn, seconds));
-        self.missed.push(
-            truth
-                .seen
-                .iter()
-                .map(|&(o, _)| o)
-                .filter(|&o| !drawn.contains(o as usize))
-                .collect(),
-        );
-    }
+/// What a report page shows.
+pub struct Page<'a> {
+    /// The scene's file, as named on the page.
+    pub scene_name: String,
+    /// The scene.
+    pub scene: &'a Scene,
+    /// The views, in order.
+    pub views: &'a [View],
+    /// The experiment's parameters.
+    pub params: &'a ReportParams,
+    /// What was measured.
+    pub experiment: &'a Experiment,
+    /// The tree.
+    pub file: &'a V5dFile,
+    /// Where the tree came from.
+    pub tree: TreeSource,
 }
 
-pub fn report(args: &ReportArgs) -> Result<()> {
-    if args.resolution == 0 || args.resolution > 8192 {
-        bail!("--resolution must be between 1 and 8192");
-    }
-    if !(args.fov > 0.0 && args.fov < 180.0) {
-        bail!("--fov must be between 0 and 180 degrees");
-    }
-    if args.grid_cell == 0 || args.grid_cell > args.resolution {
-        bail!("--grid-cell must be between 1 and the resolution");
-    }
-    if args.views.is_none() && args.random == 0 {
-        bail!("--random must be at least 1 (or give --views)");
-    }
-    if !(args.oracle_cell.is_finite() && args.oracle_cell > 0.0) {
-        bail!("--oracle-cell must be a positive share of the scene's diagonal");
-    }
-    let (scene, _) = load_scene(&args.file)?;
-    let tracer = Tracer::new(&scene);
-    // The tree: given or built.
-    let (file, source, build_seconds, rays) = match &args.pvs {
-        Some(path) => {
-            let (_, file) = read_v5d(path)?;
-            if file.fingerprint != scene.fingerprint() {
-                bail!(
-                    "{} was built for another scene than {} (geometry fingerprint differs); rebuild it",
-                    path.display(),
-                    args.file.display()
-                );
-            }
-            (file, path.display().to_string(), None, None)
-        }
-        None => {
-            let params = BuildParams::default();
-            let bar = progress_bar("building the tree", 1000);
-            let start = Instant::now();
-            let (tree, stats) = builder::build(&scene, &tracer, &params, &|f| {
-                bar.set_position((f * 1000.0) as u64)
-            })
-            .map_err(|e| anyhow!("{e}"))?;
-            bar.finish_and_clear();
-            let seconds = start.elapsed().as_secs_f64();
-            let file = builder::to_file(&scene, tree, &params, None);
-            (
-                file,
-                "built with the default parameters".to_string(),
-                Some(seconds),
-                Some(stats.rays()),
-            )
-        }
-    };
-    let pvs = Pvs::from_bytes(&codec::write_file(&file)).map_err(|e| anyhow!("the tree: {e}"))?;
-    let views: Vec<View> = match &args.views {
-        Some(path) => read_views(path)?,
-        None => random_views(&pvs.root_cell().space(), args.random, args.fov, args.seed),
-    };
-    if views.is_empty() {
-        bail!("no views to report on");
-    }
-    let oracle = if args.no_oracle {
-        None
-    } else {
-        Some(Oracle::new(&scene, OracleParams::default()).map_err(|e| anyhow!("{e}"))?)
-    };
-    let half = 0.5 * args.oracle_cell * scene.bounds().diagonal();
-    let n = scene.objects().len();
-    let mut methods = vec![
-        Method::new(
-            "frustum",
-            "view-frustum culling: objects whose bounding box meets the frustum",
-        ),
-        Method::new(
-            "vis5d",
-            "the vis5d tree (.v5d) queried per view, then view-frustum culling",
-        ),
-        Method::new(
-            "lazy grid",
-            "the lazy occlusion grid of papers/002: an occlusion buffer with a grid of cells updated lazily, object boxes front to back (online, from the eye)",
-        ),
-    ];
-    if oracle.is_some() {
-        methods.push(Method::new(
-            "oracle",
-            "the extended-projection oracle of a cube around the eye, within the frustum",
-        ));
-    }
-    let grid = LazyGrid::new(&scene);
-    let mut grid_costs: Vec<GridCost> = Vec::with_capacity(views.len());
-    let mut truths: Vec<ViewTruth> = Vec::with_capacity(views.len());
-    let mut truth_seconds = 0.0;
-    let bar = progress_bar("views", views.len() as u64);
-    let (mut set, mut frustum) = (ObjectSet::new(n), ObjectSet::new(n));
-    for (i, view) in views.iter().enumerate() {
-        let camera = Camera::new(view, args.resolution, args.resolution)
-            .ok_or_else(|| anyhow!("view {i} is degenerate (zero direction or up along it)"))?;
-        let start = Instant::now();
-        let t = truth(&scene, &tracer, &camera);
-        truth_seconds += start.elapsed().as_secs_f64();
-        let start = Instant::now();
-        frustum_set(&scene, &camera, &mut frustum);
-        let s = start.elapsed().as_secs_f64();
-        methods[0].record(&scene, &t, &frustum, s);
-        // The tree's answer holds what any leaf the frustum's directions
-        // meet can see, also outside the frustum; a renderer culls those
-        // with the frustum anyway, so the method is both.
-        let start = Instant::now();
-        pvs.query_view(view, &mut set);
-        set.intersect_with(&frustum);
-        let s = start.elapsed().as_secs_f64() + methods[0].per_view[i].seconds;
-        methods[1].record(&scene, &t, &set, s);
-        let start = Instant::now();
-        let lazy = grid.cull(
-            &camera,
-            &GridParams {
-                cell_pixels: args.grid_cell,
-                lazy: true,
-            },
-            &mut set,
-        );
-        let s = start.elapsed().as_secs_f64();
-        methods[2].record(&scene, &t, &set, s);
-        let start = Instant::now();
-        let busy = grid.cull(
-            &camera,
-            &GridParams {
-                cell_pixels: args.grid_cell,
-                lazy: false,
-            },
-            &mut set,
-        );
-        grid_costs.push(GridCost {
-            lazy_pixel_queries: lazy.pixel_queries,
-            busy_pixel_queries: busy.pixel_queries,
-            lazy_cell_updates: lazy.cell_updates,
-            busy_cell_updates: busy.cell_updates,
-            boxes_tested: lazy.boxes_tested,
-            lazy_ms: 1e3 * s,
-            busy_ms: 1e3 * start.elapsed().as_secs_f64(),
-        });
-        if let Some(oracle) = &oracle {
-            let start = Instant::now();
-            let cell = Aabb::new(view.position - half, view.position + half);
-            let mut kept = oracle.cell(&cell, None).visible;
-            kept.intersect_with(&frustum);
-            let s = start.elapsed().as_secs_f64() + methods[0].per_view[i].seconds;
-            methods[3].record(&scene, &t, &kept, s);
-        }
-        truths.push(t);
-        bar.set_position(i as u64 + 1);
-    }
-    bar.finish_and_clear();
-    let summary = vis5d::builder::summarize(&file.tree, &scene);
+/// Writes `report.json`, `report.md` and `index.html` into `dir` (made if
+/// missing). Returns each method's summary, by name, for the caller's
+/// summary lines.
+pub fn write(dir: &Path, page: &Page) -> Result<Vec<(&'static str, MethodSummary)>> {
+    let Page {
+        scene_name,
+        scene,
+        views,
+        params,
+        experiment: e,
+        file,
+        tree,
+    } = page;
+    let summary = vis5d::builder::summarize(&file.tree, scene);
     let leaf_set_sizes: Vec<usize> = file
         .tree
         .leaves()
         .iter()
         .map(|l| file.tree.nodes()[l.node].set.count())
         .collect();
+    let frustum = e.frustum();
     let report = ReportJson {
-        scene: args.file.display().to_string(),
-        objects: n,
+        scene: scene_name.clone(),
+        objects: scene.objects().len(),
         triangles: scene.triangles().len(),
-        resolution: args.resolution,
-        truth_ms_per_view: 1e3 * truth_seconds / views.len() as f64,
+        resolution: params.resolution,
+        truth_ms_per_view: 1e3 * e.truth_seconds / views.len().max(1) as f64,
         views: views
             .iter()
-            .zip(&truths)
+            .zip(&e.truths)
             .map(|(v, t)| TruthJson {
                 pos: v.position.to_array(),
                 dir: v.dir.to_array(),
@@ -378,12 +146,13 @@ pub fn report(args: &ReportArgs) -> Result<()> {
                 seen: t.seen.clone(),
             })
             .collect(),
-        methods: methods
+        methods: e
+            .methods
             .iter()
             .map(|m| MethodJson {
-                name: m.name,
-                description: m.description,
-                summary: summarise(&m.per_view, &methods[0].per_view, &m.missed),
+                name: m.method.name(),
+                description: m.method.description(),
+                summary: m.summary(frustum),
                 per_view: m
                     .per_view
                     .iter()
@@ -403,9 +172,9 @@ pub fn report(args: &ReportArgs) -> Result<()> {
             })
             .collect(),
         tree: TreeJson {
-            source,
-            build_seconds,
-            rays,
+            source: tree.source.clone(),
+            build_seconds: tree.build_seconds,
+            rays: tree.rays,
             leaves: summary.leaves,
             nodes: summary.nodes,
             mean_leaf_objects: summary.mean_leaf_objects,
@@ -418,68 +187,21 @@ pub fn report(args: &ReportArgs) -> Result<()> {
                 })
                 .collect(),
         },
-        oracle_cell: oracle.as_ref().map(|_| 2.0 * half),
-        grid_cell_pixels: args.grid_cell,
-        grid_costs,
+        oracle_cell: e.oracle_cell,
+        grid_cell_pixels: params.grid_cell,
+        grid_costs: e.grid_costs.clone(),
     };
-    write_report(&args.output, &report, &truths, &scene)?;
-    println!(
-        "wrote {} (index.html, report.json, report.md): {} views, {} methods",
-        args.output.display(),
-        views.len(),
-        report.methods.len()
-    );
-    for m in &report.methods {
-        println!(
-            "  {:<10} {:>8.1} objects per view, geometry ratio {}, pixel error {} (worst view {}), {} distinct objects missed",
-            m.name,
-            m.summary.mean_objects,
-            m.summary
-                .geometry_ratio
-                .map_or("n/a".into(), |g| format!("{g:.2}")),
-            share(m.summary.mean_pixel_error),
-            share(m.summary.worst_pixel_error),
-            m.summary.distinct_missed_objects
-        );
-    }
-    Ok(())
-}
-
-fn summarise(views: &[ViewMetrics], frustum: &[ViewMetrics], missed: &[Vec<u32>]) -> MethodSummary {
-    let n = views.len().max(1) as f64;
-    let defined: Vec<&ViewMetrics> = views.iter().filter(|v| v.seen > 0).collect();
-    let d = defined.len().max(1) as f64;
-    let frustum_tris: u64 = frustum.iter().map(|v| v.triangles).sum();
-    let tris: u64 = views.iter().map(|v| v.triangles).sum();
-    let mut distinct: Vec<u32> = missed.iter().flatten().copied().collect();
-    distinct.sort_unstable();
-    distinct.dedup();
-    let (worst_view, worst) = views
-        .iter()
-        .enumerate()
-        .map(|(i, v)| (i, v.pixel_error))
-        .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
-    MethodSummary {
-        mean_objects: views.iter().map(|v| v.objects).sum::<usize>() as f64 / n,
-        max_objects: views.iter().map(|v| v.objects).max().unwrap_or(0),
-        mean_triangles: tris as f64 / n,
-        max_triangles: views.iter().map(|v| v.triangles).max().unwrap_or(0),
-        geometry_ratio: (tris > 0).then(|| frustum_tris as f64 / tris as f64),
-        mean_pixel_error: defined.iter().map(|v| v.pixel_error).sum::<f64>() / d,
-        worst_pixel_error: worst,
-        worst_view,
-        missed_objects: views.iter().map(|v| v.missed_objects).sum(),
-        distinct_missed_objects: distinct.len(),
-        views_with_misses: views.iter().filter(|v| v.missed_objects > 0).count(),
-        mean_q_u: defined.iter().map(|v| v.q_u).sum::<f64>() / d,
-        mean_q_o: defined.iter().map(|v| v.q_o).sum::<f64>() / d,
-        mean_ms_per_view: 1e3 * views.iter().map(|v| v.seconds).sum::<f64>() / n,
-    }
+    write_files(dir, &report, e)?;
+    Ok(report
+        .methods
+        .into_iter()
+        .map(|m| (m.name, m.summary))
+        .collect())
 }
 
 /// A share for people: "0" when exactly zero, else three significant
 /// digits (so that a small non-zero value never reads as zero).
-fn share(x: f64) -> String {
+pub fn share(x: f64) -> String {
     if x == 0.0 {
         "0".into()
     } else if x >= 0.01 {
@@ -668,7 +390,8 @@ fn html_escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
-fn write_report(dir: &Path, r: &ReportJson, truths: &[ViewTruth], _scene: &Scene) -> Result<()> {
+fn write_files(dir: &Path, r: &ReportJson, e: &Experiment) -> Result<()> {
+    let truths = &e.truths;
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
     let json = serde_json::to_vec_pretty(r)?;

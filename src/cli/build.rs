@@ -1,0 +1,433 @@
+//! `vis5d build`: the 5D visibility tree of a scene, written to a `.v5d`.
+
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use serde::Serialize;
+use vis5d::builder::{BuildParams, BuildStats, PixelError, VerifyParams};
+use vis5d::codec::{self, Coding};
+use vis5d::geom::Aabb;
+use vis5d::scene::Scene;
+use vis5d::sprt::SprtParams;
+use vis5d::trace::Tracer;
+use vis5d::tree::TreeSummary;
+
+use crate::common::{
+    CodingSize, ShapeReport, coding_sizes, load_scene, parse_box, parse_pair, print_shape,
+    progress_bar,
+};
+
+#[derive(Args, Debug)]
+pub struct BuildArgs {
+    /// The scene file (.obj, .gltf or .glb).
+    file: PathBuf,
+    /// Where to write the tree [default: the model's path with the
+    /// extension .v5d].
+    #[arg(short, long, value_name = "FILE.v5d")]
+    output: Option<PathBuf>,
+    /// How to code the sets: leaf (leaves only), parent (children relative
+    /// to the parent) or sibling (the heavier sibling relative to the
+    /// lighter too) [default: the smallest for this tree].
+    #[arg(long)]
+    coding: Option<Coding>,
+    /// Build and report, but write nothing.
+    #[arg(long)]
+    dry_run: bool,
+    /// Print the summary as JSON instead of text.
+    #[arg(long)]
+    json: bool,
+    /// The positions to build for, as x0,y0,z0,x1,y1,z1 [default: the
+    /// scene's bounding box].
+    #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box)]
+    view_box: Option<Aabb>,
+    /// Grow the view box by this fraction of its diagonal on every side.
+    #[arg(long, default_value_t = 0.0)]
+    grow: f32,
+    /// Seed of every random stream: the same seed gives the same tree,
+    /// whatever the thread count.
+    #[arg(long, default_value_t = BuildParams::default().seed)]
+    seed: u64,
+    /// Threads [default: all cores].
+    #[arg(long)]
+    threads: Option<usize>,
+    /// SPRT: the visible fraction separating visible from invisible.
+    #[arg(long, default_value_t = BuildParams::default().sprt.s_thresh)]
+    s_thresh: f64,
+    /// SPRT: odds above which an object is visible (the paper's A).
+    #[arg(long, default_value_t = BuildParams::default().sprt.accept)]
+    accept: f64,
+    /// SPRT: odds below which an object is invisible (the paper's B).
+    #[arg(long, default_value_t = BuildParams::default().sprt.reject)]
+    reject: f64,
+    /// SPRT: the prior Beta(a, b) on the visible fraction, as a,b.
+    #[arg(long, value_name = "A,B", value_parser = parse_pair,
+          default_value = "1,50")]
+    prior: (f64, f64),
+    /// SPRT: rays after which an undecided object is kept as visible.
+    #[arg(long, default_value_t = BuildParams::default().sprt.max_rays)]
+    max_rays: u32,
+    /// Internal nodes declare an object invisible only after this many
+    /// times the misses the SPRT needs (their verdict holds for every cell
+    /// below).
+    #[arg(long, default_value_t = BuildParams::default().internal_miss_factor)]
+    internal_miss_factor: u32,
+    /// Uniform cell rays cached per cell to score splits.
+    #[arg(long, default_value_t = BuildParams::default().cache_rays)]
+    cache_rays: u32,
+    /// Split only when the effectiveness E(A, B) exceeds this.
+    #[arg(long, default_value_t = BuildParams::default().split_threshold)]
+    split_threshold: f64,
+    /// The deepest a leaf may be.
+    #[arg(long, default_value_t = BuildParams::default().max_depth)]
+    max_depth: u32,
+    /// The smallest cell in x, y, z, as a fraction of the root's extent.
+    #[arg(long, default_value_t = BuildParams::default().min_cell_fraction)]
+    min_cell: f32,
+    /// The smallest cell in theta and phi, as a fraction of 2 pi and pi.
+    #[arg(long, default_value_t = BuildParams::default().min_angle_fraction)]
+    min_angle: f32,
+    /// Split a cell only if its set holds at least this many triangles
+    /// (the paper: 500).
+    #[arg(long, default_value_t = BuildParams::default().min_visible_triangles)]
+    min_visible_triangles: u64,
+    /// Split x, y, z only, then cut each final cell into
+    /// --angular-leaves angular intervals.
+    #[arg(long)]
+    spatial_only: bool,
+    /// With --spatial-only: angular intervals per final cell (a power of
+    /// two; the paper used 8).
+    #[arg(long, default_value_t = 1)]
+    angular_leaves: u32,
+    /// Candidate split values per angular dimension.
+    #[arg(long, default_value_t = BuildParams::default().angular_candidates)]
+    angular_candidates: u32,
+    /// Split values lie on a 2^q grid of the node's range.
+    #[arg(long, default_value_t = BuildParams::default().grid_bits)]
+    grid_bits: u32,
+    /// Rejected samples per object and cell after which it is kept as
+    /// visible.
+    #[arg(long, default_value_t = BuildParams::default().rejection_budget)]
+    rejection_budget: u32,
+    /// After building, render this many random views and report the pixel
+    /// error.
+    #[arg(long, default_value_t = 0)]
+    verify_views: u32,
+    /// Pixels per side of each verification view.
+    #[arg(long, default_value_t = 64)]
+    verify_resolution: u32,
+}
+
+impl BuildArgs {
+    fn params(&self) -> BuildParams {
+        BuildParams {
+            sprt: SprtParams {
+                s_thresh: self.s_thresh,
+                accept: self.accept,
+                reject: self.reject,
+                prior_a: self.prior.0,
+                prior_b: self.prior.1,
+                max_rays: self.max_rays,
+            },
+            internal_miss_factor: self.internal_miss_factor,
+            cache_rays: self.cache_rays,
+            split_threshold: self.split_threshold,
+            max_depth: self.max_depth,
+            min_cell_fraction: self.min_cell,
+            min_angle_fraction: self.min_angle,
+            min_visible_triangles: self.min_visible_triangles,
+            spatial_only: self.spatial_only,
+            angular_leaves: self.angular_leaves,
+            angular_candidates: self.angular_candidates,
+            grid_bits: self.grid_bits,
+            rejection_budget: self.rejection_budget,
+            view_box: self.view_box,
+            view_grow: self.grow,
+            seed: self.seed,
+        }
+    }
+}
+
+/// Everything `build` reports.
+#[derive(Serialize)]
+struct BuildReport {
+    file: String,
+    objects: usize,
+    triangles: usize,
+    view_box: [[f32; 3]; 2],
+    threads: usize,
+    seed: u64,
+    #[serde(flatten)]
+    tree: ShapeReport,
+    rays_cast: u64,
+    cell_rays: u64,
+    object_rays: u64,
+    rays_rejected: u64,
+    rays_per_second: f64,
+    decisions: DecisionReport,
+    seconds: StageSeconds,
+    pixel_error: Option<PixelErrorReport>,
+    coding_sizes: Vec<CodingSize>,
+    written: Option<Written>,
+}
+
+/// What `build` wrote.
+#[derive(Serialize)]
+struct Written {
+    path: String,
+    bytes: usize,
+    coding: String,
+}
+
+#[derive(Serialize)]
+struct DecisionReport {
+    proven_by_hit: u64,
+    sprt_invisible: u64,
+    cap_reached: u64,
+    geometry_invisible: u64,
+    rejection_kept: u64,
+}
+
+#[derive(Serialize)]
+struct StageSeconds {
+    load: f64,
+    bvh: f64,
+    build: f64,
+    tracing: f64,
+    tracing_share: f64,
+    verify: f64,
+}
+
+#[derive(Serialize)]
+struct PixelErrorReport {
+    views: u32,
+    resolution: u32,
+    hit_pixels: u64,
+    missing_pixels: u64,
+    fraction: f64,
+    worst_view: f64,
+    missing_objects: Vec<(String, u64)>,
+}
+
+/// Runs `vis5d build`.
+pub fn run(args: &BuildArgs) -> Result<()> {
+    if let Some(n) = args.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build_global()
+            .context("cannot set up the thread pool")?;
+    }
+    let params = args.params();
+    params.validate()?;
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| args.file.with_extension("v5d"));
+    if !args.dry_run {
+        // Fail before the build, not after it.
+        let dir = output
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        if !dir.is_dir() {
+            bail!(
+                "{}: cannot write the tree there: {} is not a folder",
+                output.display(),
+                dir.display()
+            );
+        }
+    }
+    let (scene, load_seconds) = load_scene(&args.file)?;
+    let start = Instant::now();
+    let tracer = Tracer::new(&scene);
+    let bvh_seconds = start.elapsed().as_secs_f64();
+
+    let bar = progress_bar("building", 1000);
+    let (tree, stats) = vis5d::builder::build(&scene, &tracer, &params, &|f| {
+        bar.set_position((f * 1000.0) as u64)
+    })?;
+    bar.finish_and_clear();
+    tree.validate()
+        .map_err(|e| anyhow::anyhow!("internal error: the built tree is inconsistent: {e}"))?;
+    let summary = vis5d::builder::summarize(&tree, &scene);
+
+    let start = Instant::now();
+    let verify = (args.verify_views > 0).then(|| {
+        let v = VerifyParams {
+            views: args.verify_views,
+            resolution: args.verify_resolution.max(1),
+            ..VerifyParams::default()
+        };
+        vis5d::builder::pixel_error(&scene, &tracer, &tree, &v)
+    });
+    let verify_seconds = start.elapsed().as_secs_f64();
+    let sizes = coding_sizes(&tree);
+    let written = if args.dry_run {
+        None
+    } else {
+        let file = vis5d::builder::to_file(&scene, tree.clone(), &params, args.coding);
+        let bytes = codec::write_file(&file);
+        // Encode -> decode must be the identity: check before writing.
+        let back = codec::read_file(&bytes, codec::ReadLimits::default())
+            .map_err(|e| anyhow::anyhow!("internal error: the coded tree does not decode: {e}"))?;
+        if back.tree != tree {
+            bail!("internal error: the coded tree decodes to another tree");
+        }
+        vis5d::atomic_write::write_atomic(&output, &bytes)
+            .with_context(|| format!("{}: cannot write the tree", output.display()))?;
+        Some(Written {
+            path: output.display().to_string(),
+            bytes: bytes.len(),
+            coding: file.coding.name().to_owned(),
+        })
+    };
+    let mut report = build_report(
+        args,
+        &params,
+        &scene,
+        summary,
+        &stats,
+        verify.as_ref(),
+        [load_seconds, bvh_seconds, verify_seconds],
+    );
+    report.coding_sizes = sizes;
+    report.written = written;
+    let mut out = io::stdout().lock();
+    if args.json {
+        serde_json::to_writer_pretty(&mut out, &report)?;
+        writeln!(out)?;
+    } else {
+        print_build(&mut out, &report)?;
+    }
+    Ok(())
+}
+
+fn build_report(
+    args: &BuildArgs,
+    params: &BuildParams,
+    scene: &Scene,
+    s: TreeSummary,
+    stats: &BuildStats,
+    verify: Option<&PixelError>,
+    [load, bvh, verify_seconds]: [f64; 3],
+) -> BuildReport {
+    let b = params.root_box(scene);
+    let threads = rayon::current_num_threads();
+    let d = stats.decisions;
+    BuildReport {
+        file: args.file.display().to_string(),
+        objects: scene.objects().len(),
+        triangles: scene.triangles().len(),
+        view_box: [b.min.to_array(), b.max.to_array()],
+        threads,
+        seed: params.seed,
+        tree: s.into(),
+        rays_cast: stats.rays(),
+        cell_rays: stats.cell_rays,
+        object_rays: stats.object_rays,
+        rays_rejected: stats.rejected,
+        rays_per_second: stats.rays() as f64 / stats.seconds.max(1e-9),
+        decisions: DecisionReport {
+            proven_by_hit: d.proven_by_hit,
+            sprt_invisible: d.sprt_invisible,
+            cap_reached: d.cap_reached,
+            geometry_invisible: d.geometry_invisible,
+            rejection_kept: d.rejection_kept,
+        },
+        seconds: StageSeconds {
+            load,
+            bvh,
+            build: stats.seconds,
+            tracing: stats.trace_seconds,
+            tracing_share: stats.trace_seconds / (stats.seconds * threads as f64).max(1e-9),
+            verify: verify_seconds,
+        },
+        pixel_error: verify.map(|v| PixelErrorReport {
+            views: v.views,
+            resolution: args.verify_resolution,
+            hit_pixels: v.hit_pixels,
+            missing_pixels: v.missing_pixels,
+            fraction: v.fraction(),
+            worst_view: v.worst_view,
+            missing_objects: v
+                .missing_objects
+                .iter()
+                .map(|&(o, n)| (scene.objects()[o as usize].name.clone(), n))
+                .collect(),
+        }),
+        coding_sizes: Vec::new(),
+        written: None,
+    }
+}
+
+fn print_build(out: &mut impl Write, r: &BuildReport) -> io::Result<()> {
+    writeln!(
+        out,
+        "{}: {} objects, {} triangles",
+        r.file, r.objects, r.triangles
+    )?;
+    print_shape(out, r.view_box, &r.tree)?;
+    writeln!(
+        out,
+        "  rays             {} cast ({} cell, {} object samples), {} samples rejected, {:.2} M/s",
+        r.rays_cast,
+        r.cell_rays,
+        r.object_rays,
+        r.rays_rejected,
+        r.rays_per_second / 1e6
+    )?;
+    let d = &r.decisions;
+    writeln!(
+        out,
+        "  decisions        {} proven by a hit, {} invisible by SPRT, {} invisible by geometry,",
+        d.proven_by_hit, d.sprt_invisible, d.geometry_invisible
+    )?;
+    writeln!(
+        out,
+        "                   {} kept at the ray cap, {} kept after rejections",
+        d.cap_reached, d.rejection_kept
+    )?;
+    let s = &r.seconds;
+    writeln!(
+        out,
+        "  seconds          load {:.3}, bvh {:.3}, build {:.3} ({:.0}% tracing, {} threads), verify {:.3}",
+        s.load,
+        s.bvh,
+        s.build,
+        100.0 * s.tracing_share,
+        r.threads,
+        s.verify
+    )?;
+    if let Some(p) = &r.pixel_error {
+        writeln!(
+            out,
+            "  pixel error      {:.4}% of {} hit pixels in {} views of {}x{} (worst view {:.3}%)",
+            100.0 * p.fraction,
+            p.hit_pixels,
+            p.views,
+            p.resolution,
+            p.resolution,
+            100.0 * p.worst_view
+        )?;
+        for (name, n) in p.missing_objects.iter().take(5) {
+            writeln!(out, "                   {n} pixels of {name:?} missing")?;
+        }
+    }
+    let sizes: Vec<String> = r
+        .coding_sizes
+        .iter()
+        .map(|c| format!("{} {} B", c.coding, c.bytes))
+        .collect();
+    writeln!(out, "  coded tree       {}", sizes.join(", "))?;
+    match &r.written {
+        Some(w) => writeln!(
+            out,
+            "  wrote            {} ({} bytes, {} coding)",
+            w.path, w.bytes, w.coding
+        )?,
+        None => writeln!(out, "  nothing written (--dry-run)")?,
+    }
+    Ok(())
+}

@@ -1,0 +1,239 @@
+//! What the commands share: value parsers for the flags, reading the
+//! inputs (scenes, `.v5d` files, camera paths) with clear errors, progress
+//! bars, and the tree summary printed by `build` and `stat`.
+
+use std::io::{self, IsTerminal, Write};
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use glam::Vec3;
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+use vis5d::codec::{self, Coding, code_size};
+use vis5d::geom::Aabb;
+use vis5d::query::View;
+use vis5d::scene::{self, Scene};
+use vis5d::tree::{TreeSummary, VisTree};
+
+/// The flag of a library parameter: `grid_cell` is `--grid-cell`.
+pub fn flag(parameter: &str) -> String {
+    format!("--{}", parameter.replace('_', "-"))
+}
+
+/// Parses `x0,y0,z0,x1,y1,z1`.
+pub fn parse_box(s: &str) -> Result<Aabb, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>().map_err(|e| format!("{x:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    if v.len() != 6 {
+        return Err(format!(
+            "expected 6 numbers x0,y0,z0,x1,y1,z1, got {}",
+            v.len()
+        ));
+    }
+    let b = Aabb::new(Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]));
+    if !(b.min.is_finite() && b.max.is_finite() && b.min.cmplt(b.max).all()) {
+        return Err("the box needs finite corners with x0 < x1, y0 < y1, z0 < z1".into());
+    }
+    Ok(b)
+}
+
+/// Parses `a,b`.
+pub fn parse_pair(s: &str) -> Result<(f64, f64), String> {
+    let (a, b) = s.split_once(',').ok_or("expected two numbers a,b")?;
+    let p = |x: &str| x.trim().parse::<f64>().map_err(|e| format!("{x:?}: {e}"));
+    Ok((p(a)?, p(b)?))
+}
+
+/// Parses `x,y,z`.
+pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>().map_err(|e| format!("{x:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => Ok(Vec3::new(x, y, z)),
+        [_, _, _] => Err("the coordinates must be finite".into()),
+        _ => Err(format!("expected 3 numbers x,y,z, got {}", v.len())),
+    }
+}
+
+/// Loads a scene with a progress bar on a terminal.
+pub fn load_scene(path: &Path) -> Result<(Scene, f64)> {
+    let bar = if io::stderr().is_terminal() {
+        let bar = ProgressBar::new(0).with_style(
+            ProgressStyle::with_template("loading {msg} [{bar:30}] {bytes}/{total_bytes} {eta}")
+                .expect("the template is valid")
+                .progress_chars("=> "),
+        );
+        bar.set_message(path.display().to_string());
+        bar
+    } else {
+        ProgressBar::hidden()
+    };
+    let start = Instant::now();
+    let result = scene::load_with_progress(path, &mut |done, total| {
+        bar.set_length(total);
+        bar.set_position(done);
+    });
+    bar.finish_and_clear();
+    Ok((result?, start.elapsed().as_secs_f64()))
+}
+
+pub fn read_v5d(path: &Path) -> Result<(Vec<u8>, codec::V5dFile)> {
+    let bytes = std::fs::read(path)
+        .with_context(|| format!("{}: cannot read the .v5d file", path.display()))?;
+    let file = codec::read_file(&bytes, codec::ReadLimits::default())
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok((bytes, file))
+}
+
+/// One view of `query --views`.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ViewSpec {
+    pos: [f32; 3],
+    dir: [f32; 3],
+    #[serde(default = "default_fov")]
+    fov: f32,
+}
+
+fn default_fov() -> f32 {
+    90.0
+}
+
+/// Reads a views file: a JSON list of `{"pos": [x,y,z], "dir": [x,y,z],
+/// "fov": degrees}` (square field of view, up = +z unless `dir` is
+/// vertical).
+pub fn read_views(path: &Path) -> Result<Vec<View>> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read the views", path.display()))?;
+    let specs: Vec<ViewSpec> = serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{}: expected a JSON list of {{\"pos\": [x,y,z], \"dir\": [x,y,z], \"fov\": degrees}}",
+            path.display()
+        )
+    })?;
+    specs
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let (pos, dir) = (Vec3::from_array(v.pos), Vec3::from_array(v.dir));
+            let ok = pos.is_finite()
+                && dir.is_finite()
+                && dir != Vec3::ZERO
+                && v.fov > 0.0
+                && v.fov < 180.0;
+            if !ok {
+                bail!(
+                    "{}: view {i} needs finite pos, a non-zero dir and 0 < fov < 180",
+                    path.display()
+                );
+            }
+            Ok(View::square(pos, dir, v.fov))
+        })
+        .collect()
+}
+
+/// A progress bar on a terminal, hidden otherwise.
+pub fn progress_bar(what: &str, len: u64) -> ProgressBar {
+    if !io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(len).with_style(
+        ProgressStyle::with_template(
+            "{msg} [{bar:30}] {percent}% of view space {elapsed} (eta {eta})",
+        )
+        .expect("the template is valid")
+        .progress_chars("=> "),
+    );
+    bar.set_message(what.to_owned());
+    bar
+}
+
+pub fn fmt_vec(v: [f32; 3]) -> String {
+    format!("({}, {}, {})", v[0], v[1], v[2])
+}
+
+/// A tree's shape and set sizes, as `build` and `stat` report them.
+#[derive(Serialize)]
+pub struct ShapeReport {
+    nodes: usize,
+    leaves: usize,
+    depth: u32,
+    mean_leaf_objects: f64,
+    max_leaf_objects: usize,
+    mean_leaf_triangles: f64,
+    max_leaf_triangles: u64,
+    measure_weighted_leaf_objects: f64,
+}
+
+impl From<TreeSummary> for ShapeReport {
+    fn from(s: TreeSummary) -> Self {
+        Self {
+            nodes: s.nodes,
+            leaves: s.leaves,
+            depth: s.depth,
+            mean_leaf_objects: s.mean_leaf_objects,
+            max_leaf_objects: s.max_leaf_objects,
+            mean_leaf_triangles: s.mean_leaf_triangles,
+            max_leaf_triangles: s.max_leaf_triangles,
+            measure_weighted_leaf_objects: s.measure_weighted_objects,
+        }
+    }
+}
+
+/// Prints the view box and the tree's shape, for `build` and `stat`.
+pub fn print_shape(
+    out: &mut impl Write,
+    [min, max]: [[f32; 3]; 2],
+    t: &ShapeReport,
+) -> io::Result<()> {
+    writeln!(
+        out,
+        "  view box         {} .. {}",
+        fmt_vec(min),
+        fmt_vec(max)
+    )?;
+    writeln!(
+        out,
+        "  tree             {} nodes, {} leaves, depth {}",
+        t.nodes, t.leaves, t.depth
+    )?;
+    writeln!(
+        out,
+        "  leaf sets        mean {:.1} objects ({:.0} triangles), max {} objects ({} triangles)",
+        t.mean_leaf_objects, t.mean_leaf_triangles, t.max_leaf_objects, t.max_leaf_triangles
+    )?;
+    writeln!(
+        out,
+        "                   {:.1} objects for a random view ray (measure-weighted)",
+        t.measure_weighted_leaf_objects
+    )
+}
+
+/// The size of a tree in one coding.
+#[derive(Serialize)]
+pub struct CodingSize {
+    pub coding: String,
+    pub structure_bits: u64,
+    pub set_bits: u64,
+    pub bytes: u64,
+}
+
+pub fn coding_sizes(tree: &VisTree) -> Vec<CodingSize> {
+    Coding::ALL
+        .iter()
+        .map(|&c| {
+            let s = code_size(tree, c);
+            CodingSize {
+                coding: c.name().to_owned(),
+                structure_bits: s.structure_bits,
+                set_bits: s.set_bits,
+                bytes: s.bytes(),
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,171 @@
+//! `vis5d info`: load a scene and say what loading found.
+
+use std::io::{self, Write};
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+use serde::Serialize;
+
+use crate::common::{fmt_vec, load_scene};
+
+#[derive(Args, Debug)]
+pub struct InfoArgs {
+    /// The scene file (.obj, .gltf or .glb).
+    file: PathBuf,
+    /// Print the summary as JSON (with every object) instead of text.
+    #[arg(long)]
+    json: bool,
+    /// List every object (index, name, triangles, area, bounds).
+    #[arg(long)]
+    objects: bool,
+}
+
+/// One object in `info --json`.
+#[derive(Serialize)]
+struct ObjectInfo<'a> {
+    index: usize,
+    name: &'a str,
+    triangles: usize,
+    area: f64,
+    bounds: [[f32; 3]; 2],
+}
+
+/// The summary printed by `info`.
+#[derive(Serialize)]
+struct SceneInfo<'a> {
+    file: String,
+    format: String,
+    objects: usize,
+    triangles: usize,
+    bounds: [[f32; 3]; 2],
+    surface_area: f64,
+    load_seconds: f64,
+    dropped_degenerate_triangles: usize,
+    dropped_empty_objects: &'a [String],
+    skipped_non_triangles: usize,
+    duplicate_names: Vec<DuplicateName<'a>>,
+    object_list: Vec<ObjectInfo<'a>>,
+}
+
+#[derive(Serialize)]
+struct DuplicateName<'a> {
+    name: &'a str,
+    count: usize,
+}
+
+/// Runs `vis5d info`.
+pub fn run(args: &InfoArgs) -> Result<()> {
+    let (scene, seconds) = load_scene(&args.file)?;
+    let b = scene.bounds();
+    let report = scene.report();
+    let summary = SceneInfo {
+        file: args.file.display().to_string(),
+        format: scene.format().to_string(),
+        objects: scene.objects().len(),
+        triangles: scene.triangles().len(),
+        bounds: [b.min.to_array(), b.max.to_array()],
+        surface_area: scene.objects().iter().map(|o| o.area).sum(),
+        load_seconds: seconds,
+        dropped_degenerate_triangles: report.dropped_degenerate,
+        dropped_empty_objects: &report.dropped_empty_objects,
+        skipped_non_triangles: report.skipped_non_triangles,
+        duplicate_names: report
+            .duplicate_names
+            .iter()
+            .map(|(name, count)| DuplicateName {
+                name,
+                count: *count,
+            })
+            .collect(),
+        object_list: scene
+            .objects()
+            .iter()
+            .enumerate()
+            .map(|(index, o)| ObjectInfo {
+                index,
+                name: &o.name,
+                triangles: o.triangle_count(),
+                area: o.area,
+                bounds: [o.bounds.min.to_array(), o.bounds.max.to_array()],
+            })
+            .collect(),
+    };
+    let mut out = io::stdout().lock();
+    if args.json {
+        serde_json::to_writer_pretty(&mut out, &summary)?;
+        writeln!(out)?;
+        return Ok(());
+    }
+    print_info(&mut out, &summary, args.objects)?;
+    Ok(())
+}
+
+fn print_info(out: &mut impl Write, s: &SceneInfo, all_objects: bool) -> io::Result<()> {
+    let [min, max] = s.bounds;
+    let size = [max[0] - min[0], max[1] - min[1], max[2] - min[2]];
+    writeln!(out, "{} ({})", s.file, s.format)?;
+    writeln!(out, "  objects          {}", s.objects)?;
+    writeln!(out, "  triangles        {}", s.triangles)?;
+    writeln!(
+        out,
+        "  bounds           {} .. {}",
+        fmt_vec(min),
+        fmt_vec(max)
+    )?;
+    writeln!(
+        out,
+        "  size             {} x {} x {}",
+        size[0], size[1], size[2]
+    )?;
+    writeln!(out, "  surface area     {:.6}", s.surface_area)?;
+    writeln!(out, "  loaded in        {:.3} s", s.load_seconds)?;
+    writeln!(
+        out,
+        "  dropped          {} zero-area triangles, {} groups without triangles",
+        s.dropped_degenerate_triangles,
+        s.dropped_empty_objects.len()
+    )?;
+    writeln!(
+        out,
+        "  skipped          {} lines and points",
+        s.skipped_non_triangles
+    )?;
+    if s.duplicate_names.is_empty() {
+        writeln!(out, "  duplicate names  none")?;
+    } else {
+        let total: usize = s.duplicate_names.iter().map(|d| d.count).sum();
+        writeln!(
+            out,
+            "  duplicate names  {} names shared by {} objects (objects are told apart by index):",
+            s.duplicate_names.len(),
+            total
+        )?;
+        for d in s
+            .duplicate_names
+            .iter()
+            .take(if all_objects { usize::MAX } else { 10 })
+        {
+            writeln!(out, "    {:?} x{}", d.name, d.count)?;
+        }
+        if !all_objects && s.duplicate_names.len() > 10 {
+            writeln!(out, "    ... (--objects lists them all)")?;
+        }
+    }
+    let mut listed: Vec<&ObjectInfo> = s.object_list.iter().collect();
+    if all_objects {
+        writeln!(out, "  objects:")?;
+    } else {
+        listed.sort_by_key(|o| std::cmp::Reverse(o.triangles));
+        listed.truncate(5);
+        writeln!(out, "  largest objects (--objects lists all):")?;
+    }
+    for o in listed {
+        writeln!(
+            out,
+            "    #{:<6} {:>9} tris  area {:<12.4} {:?}",
+            o.index, o.triangles, o.area, o.name
+        )?;
+    }
+    Ok(())
+}

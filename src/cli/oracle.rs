@@ -1,0 +1,227 @@
+//! `vis5d oracle`: the extended-projection oracle for one cell, and the
+//! oracle flags `vis5d check` shares.
+
+use std::io::{self, Write};
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Result, anyhow};
+use clap::Args;
+use serde::Serialize;
+use vis5d::geom::Aabb;
+use vis5d::oracle::{CellReport, Oracle, OracleError, OracleParams, Rasteriser};
+
+use crate::common::{flag, load_scene, parse_box};
+
+/// Settings shared by `oracle` and `check`.
+#[derive(Args, Debug, Clone)]
+pub struct OracleFlags {
+    /// Depth Map pixels on a side (a power of two; the paper found 256
+    /// best).
+    #[arg(long, default_value_t = 256)]
+    pub resolution: usize,
+    /// How far each projection plane reaches beyond the cell's face, in
+    /// multiples of its distance from the face (the paper used 1.5).
+    #[arg(long, default_value_t = 1.5)]
+    pub extension: f64,
+    /// The most occluders drawn into one Depth Map (the largest first).
+    #[arg(long, default_value_t = 4096)]
+    pub max_occluders: usize,
+    /// Projection planes per face of the cell: the best position, then
+    /// those that hide most objects the others do not.
+    #[arg(long, default_value_t = 2)]
+    pub planes_per_face: usize,
+    /// Rasterise the Depth Maps on the CPU even when a GPU adapter exists
+    /// (the default uses the GPU through wgpu, and the CPU when there is
+    /// none).
+    #[arg(long)]
+    pub cpu: bool,
+}
+
+impl OracleFlags {
+    /// The oracle settings these flags give, checked.
+    pub fn params(&self) -> Result<OracleParams> {
+        let p = OracleParams {
+            resolution: self.resolution,
+            extension: self.extension,
+            max_occluders: self.max_occluders,
+            planes_per_face: self.planes_per_face,
+            ..OracleParams::default()
+        };
+        p.validate().map_err(|e| match &e {
+            OracleError::Parameter { name, .. } => anyhow!("{}: {e}", flag(name)),
+        })?;
+        Ok(p)
+    }
+
+    /// The rasteriser these flags ask for: the CPU with `--cpu`, else the
+    /// GPU where there is one (a note on stderr says why not).
+    pub fn rasteriser(&self) -> Rasteriser {
+        if self.cpu {
+            return Rasteriser::cpu();
+        }
+        let r = Rasteriser::best();
+        if let Some(why) = r.cpu_reason() {
+            eprintln!("note: {why}; using the CPU rasteriser");
+        }
+        r
+    }
+}
+
+/// Warns once if maps failed on the GPU and were redone on the CPU.
+pub fn warn_gpu_failures(r: &Rasteriser) {
+    if let (n @ 1.., Some(first)) = r.gpu_failures() {
+        eprintln!(
+            "warning: {n} depth maps failed on the GPU and were made on the CPU instead (first: {first})"
+        );
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct OracleArgs {
+    /// The scene file (.obj, .gltf or .glb).
+    file: PathBuf,
+    /// The view cell: a box of viewpoints, x0,y0,z0,x1,y1,z1.
+    #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box, allow_hyphen_values = true)]
+    cell: Aabb,
+    #[command(flatten)]
+    flags: OracleFlags,
+    /// Print as JSON: the objects, the planes and the timings.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Serialize)]
+struct PlaneJson {
+    face: &'static str,
+    position: f64,
+    occluders: usize,
+    slices: usize,
+    filled_pixels: usize,
+    hidden: usize,
+}
+
+#[derive(Serialize)]
+struct OracleJson<'a> {
+    scene: String,
+    cell: [[f32; 3]; 2],
+    objects: usize,
+    occluders: usize,
+    potentially_visible: Vec<&'a str>,
+    hidden: usize,
+    touching_cell: usize,
+    resolution: usize,
+    backend: String,
+    planes: Vec<PlaneJson>,
+    seconds: Seconds,
+}
+
+#[derive(Serialize)]
+struct Seconds {
+    load: f64,
+    prepare: f64,
+    select: f64,
+    rasterise: f64,
+    test: f64,
+    cell: f64,
+}
+
+/// Runs `vis5d oracle`.
+pub fn run(args: &OracleArgs) -> Result<()> {
+    let params = args.flags.params()?;
+    let (scene, load) = load_scene(&args.file)?;
+    let start = Instant::now();
+    let oracle = Oracle::new(&scene, params, args.flags.rasteriser())?;
+    let prepare = start.elapsed().as_secs_f64();
+    let report: CellReport = oracle.cell(&args.cell, None);
+    warn_gpu_failures(oracle.rasteriser());
+    let names: Vec<&str> = report
+        .visible
+        .iter()
+        .map(|i| scene.objects()[i].name.as_str())
+        .collect();
+    let t = report.times;
+    let json = OracleJson {
+        scene: args.file.display().to_string(),
+        cell: [args.cell.min.to_array(), args.cell.max.to_array()],
+        objects: scene.objects().len(),
+        occluders: oracle.occluder_count(),
+        hidden: scene.objects().len() - names.len(),
+        potentially_visible: names,
+        touching_cell: report.touching,
+        resolution: oracle.params().resolution,
+        backend: oracle.rasteriser().name(),
+        planes: report
+            .planes
+            .iter()
+            .map(|p| PlaneJson {
+                face: p.face,
+                position: p.position,
+                occluders: p.occluders,
+                slices: p.slices,
+                filled_pixels: p.filled,
+                hidden: p.hidden,
+            })
+            .collect(),
+        seconds: Seconds {
+            load,
+            prepare,
+            select: t.select.as_secs_f64(),
+            rasterise: t.rasterise.as_secs_f64(),
+            test: t.test.as_secs_f64(),
+            cell: t.total().as_secs_f64(),
+        },
+    };
+    let mut out = io::stdout().lock();
+    if args.json {
+        serde_json::to_writer(&mut out, &json)?;
+        writeln!(out)?;
+        return Ok(());
+    }
+    let c = oracle.occluder_counts();
+    writeln!(
+        out,
+        "{}: {} objects, {} occluders ({} convex solids, {} polygons, {} triangles), {} objects to slice",
+        json.scene,
+        json.objects,
+        json.occluders,
+        c.solids,
+        c.polygons,
+        c.triangles,
+        oracle.solid_count()
+    )?;
+    writeln!(out, "cell {:?} .. {:?}", json.cell[0], json.cell[1])?;
+    let pixels = (json.resolution * json.resolution) as f64;
+    for p in &json.planes {
+        writeln!(
+            out,
+            "  plane {} at {:.4}: {} occluders, {} solids cut, {:.1}% of {}x{} pixels filled, {} objects hidden",
+            p.face,
+            p.position,
+            p.occluders,
+            p.slices,
+            100.0 * p.filled_pixels as f64 / pixels,
+            json.resolution,
+            json.resolution,
+            p.hidden
+        )?;
+    }
+    writeln!(
+        out,
+        "potentially visible: {} of {} objects ({:.1}% proved hidden; {} touch the cell)",
+        json.potentially_visible.len(),
+        json.objects,
+        100.0 * json.hidden as f64 / json.objects.max(1) as f64,
+        json.touching_cell
+    )?;
+    let s = &json.seconds;
+    writeln!(
+        out,
+        "time: load {:.3} s, prepare {:.3} s, cell {:.3} s (select {:.3}, rasterise {:.3}, test {:.3}); depth maps on the {}",
+        s.load, s.prepare, s.cell, s.select, s.rasterise, s.test, json.backend
+    )?;
+    for n in &json.potentially_visible {
+        writeln!(out, "{n}")?;
+    }
+    Ok(())
+}

@@ -1,0 +1,115 @@
+//! `vis5d query`: the objects visible from views, answered from a `.v5d`.
+
+use std::io::{self, Write};
+use std::path::PathBuf;
+
+use anyhow::{Result, bail};
+use clap::Args;
+use glam::Vec3;
+use vis5d::geom::Aabb;
+use vis5d::query::{Pvs, View};
+
+use crate::common::{load_scene, parse_box, parse_vec3, read_views};
+
+#[derive(Args, Debug)]
+pub struct QueryArgs {
+    /// The .v5d file.
+    file: PathBuf,
+    /// The eye position, x,y,z.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true, required_unless_present_any = ["views", "box"])]
+    pos: Option<Vec3>,
+    /// A box of eye positions instead of a point, x0,y0,z0,x1,y1,z1.
+    #[arg(id = "box", long = "box", value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box, allow_hyphen_values = true, conflicts_with = "pos")]
+    positions: Option<Aabb>,
+    /// The viewing direction, x,y,z.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true, required_unless_present = "views")]
+    dir: Option<Vec3>,
+    /// The up direction [default: +z, or +y when looking straight up or
+    /// down].
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    up: Option<Vec3>,
+    /// The field of view in degrees, horizontal and vertical.
+    #[arg(long, default_value_t = 90.0)]
+    fov: f32,
+    /// Answer every view of this JSON file instead.
+    #[arg(long, value_name = "VIEWS.json", conflicts_with_all = ["pos", "box", "dir"])]
+    views: Option<PathBuf>,
+    /// The scene the file should have been built for: refuse the file if
+    /// its geometry fingerprint differs.
+    #[arg(long, value_name = "MODEL")]
+    scene: Option<PathBuf>,
+    /// Print as JSON: a list of names, or with --views a list of lists.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs `vis5d query`.
+pub fn run(args: &QueryArgs) -> Result<()> {
+    let pvs = Pvs::load(&args.file)?;
+    if let Some(model) = &args.scene {
+        let (scene, _) = load_scene(model)?;
+        pvs.check_fingerprint(scene.fingerprint())
+            .map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
+    }
+    let views: Vec<View> = match &args.views {
+        Some(path) => read_views(path)?,
+        None => {
+            let dir = args.dir.expect("clap requires --dir without --views");
+            if dir == Vec3::ZERO {
+                bail!("--dir must not be the zero vector");
+            }
+            if !(args.fov > 0.0 && args.fov < 180.0) {
+                bail!("--fov must be between 0 and 180 degrees");
+            }
+            let (pos, radius) = match (args.pos, args.positions) {
+                (_, Some(b)) => (b.center(), 0.0),
+                (Some(p), None) => (p, 0.0),
+                (None, None) => unreachable!("clap requires --pos or --box"),
+            };
+            let mut v = View::square(pos, dir, args.fov);
+            if let Some(up) = args.up {
+                v.up = up;
+            }
+            v.radius = radius;
+            vec![v]
+        }
+    };
+    let mut set = pvs.new_set();
+    let mut answers: Vec<Vec<&str>> = Vec::with_capacity(views.len());
+    for v in &views {
+        match args.positions {
+            Some(b) => {
+                let r = vis5d::query::frustum_angles(v.dir, v.up, v.fov_x, v.fov_y);
+                let mut acc = pvs.new_set();
+                for &(t0, t1, p0, p1) in r.boxes() {
+                    pvs.query_range(&b, (t0, t1), (p0, p1), &mut set);
+                    acc.union_with(&set);
+                }
+                set = acc;
+            }
+            None => pvs.query_view(v, &mut set),
+        }
+        answers.push(set.iter().map(|o| pvs.objects()[o].name.as_str()).collect());
+    }
+    let mut out = io::stdout().lock();
+    if args.json {
+        if args.views.is_some() {
+            serde_json::to_writer(&mut out, &answers)?;
+        } else {
+            serde_json::to_writer(&mut out, &answers[0])?;
+        }
+        writeln!(out)?;
+    } else if args.views.is_some() {
+        for (i, names) in answers.iter().enumerate() {
+            writeln!(out, "# view {i}: {} objects", names.len())?;
+            for n in names {
+                writeln!(out, "{n}")?;
+            }
+        }
+    } else {
+        for n in &answers[0] {
+            writeln!(out, "{n}")?;
+        }
+    }
+    Ok(())
+}

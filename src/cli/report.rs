@@ -1,0 +1,188 @@
+//! `vis5d report`: the methods side by side on the user's scene, as a page
+//! (`index.html`, tables and SVG plots, no JavaScript), `report.json` with
+//! every figure and `report.md`. The experiment is the library's
+//! [`vis5d::report::run`]; this file turns the flags into its parameters,
+//! loads the inputs and writes the outputs (`report_page.rs`).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Result, anyhow, bail};
+use clap::Args;
+use vis5d::builder::{self, BuildParams};
+use vis5d::codec;
+use vis5d::oracle::{Oracle, OracleParams, Rasteriser};
+use vis5d::query::{Pvs, View};
+use vis5d::render::random_views;
+use vis5d::report::{self, ReportError, ReportParams};
+use vis5d::trace::Tracer;
+
+use crate::common::{flag, load_scene, progress_bar, read_v5d, read_views};
+use crate::oracle::warn_gpu_failures;
+use crate::report_page::{self, Page, TreeSource, share};
+
+#[derive(Args, Debug)]
+pub struct ReportArgs {
+    /// The scene file (.obj, .gltf or .glb).
+    file: PathBuf,
+    /// The folder to write index.html, report.json and report.md into
+    /// (created if missing).
+    #[arg(short, long, value_name = "DIR")]
+    output: PathBuf,
+    /// A tree built for the scene; without it, one is built with the
+    /// default parameters (and its build time and rays are reported).
+    #[arg(long, value_name = "FILE.v5d")]
+    pvs: Option<PathBuf>,
+    /// The views: a JSON list as for `vis5d query --views` (a camera
+    /// path); without it, `--random` views.
+    #[arg(long, value_name = "VIEWS.json")]
+    views: Option<PathBuf>,
+    /// How many random views (eye uniform in the tree's view box,
+    /// direction uniform) when no `--views` file is given.
+    #[arg(long, default_value_t = 50)]
+    random: usize,
+    /// Field of view of the random views, degrees.
+    #[arg(long, default_value_t = 90.0)]
+    fov: f32,
+    /// Seed of the random views.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Pixels on a side of the ground-truth images.
+    #[arg(long, default_value_t = 512)]
+    resolution: u32,
+    /// Size of the oracle's cell around each eye, as a share of the
+    /// scene's diagonal (a cube).
+    #[arg(long, default_value_t = 0.01)]
+    oracle_cell: f32,
+    /// Leave the oracle out (it is the slowest method).
+    #[arg(long)]
+    no_oracle: bool,
+    /// Cell size of the lazy occlusion grid, in pixels (papers/002 used
+    /// 32 x 32).
+    #[arg(long, default_value_t = 32)]
+    grid_cell: u32,
+}
+
+impl ReportArgs {
+    /// The experiment's parameters, checked, with the other flags.
+    fn params(&self) -> Result<ReportParams> {
+        if !(self.fov > 0.0 && self.fov < 180.0) {
+            bail!("--fov must be between 0 and 180 degrees");
+        }
+        if self.views.is_none() && self.random == 0 {
+            bail!("--random must be at least 1 (or give --views)");
+        }
+        let params = ReportParams {
+            resolution: self.resolution,
+            grid_cell: self.grid_cell,
+            oracle_cell: self.oracle_cell,
+        };
+        params.validate().map_err(|e| match &e {
+            ReportError::Parameter { name, .. } => anyhow!("{}: {e}", flag(name)),
+            _ => e.into(),
+        })?;
+        Ok(params)
+    }
+}
+
+/// Runs `vis5d report`.
+pub fn run(args: &ReportArgs) -> Result<()> {
+    let params = args.params()?;
+    let (scene, _) = load_scene(&args.file)?;
+    let tracer = Tracer::new(&scene);
+    // The tree: given or built.
+    let (file, tree) = match &args.pvs {
+        Some(path) => {
+            let (_, file) = read_v5d(path)?;
+            if file.fingerprint != scene.fingerprint() {
+                bail!(
+                    "{} was built for another scene than {} (geometry fingerprint differs); rebuild it",
+                    path.display(),
+                    args.file.display()
+                );
+            }
+            let source = TreeSource {
+                source: path.display().to_string(),
+                build_seconds: None,
+                rays: None,
+            };
+            (file, source)
+        }
+        None => {
+            let build_params = BuildParams::default();
+            let bar = progress_bar("building the tree", 1000);
+            let start = Instant::now();
+            let (tree, stats) = builder::build(&scene, &tracer, &build_params, &|f| {
+                bar.set_position((f * 1000.0) as u64)
+            })?;
+            bar.finish_and_clear();
+            let source = TreeSource {
+                source: "built with the default parameters".to_string(),
+                build_seconds: Some(start.elapsed().as_secs_f64()),
+                rays: Some(stats.rays()),
+            };
+            (builder::to_file(&scene, tree, &build_params, None), source)
+        }
+    };
+    let pvs = Pvs::from_bytes(&codec::write_file(&file))?;
+    let views: Vec<View> = match &args.views {
+        Some(path) => read_views(path)?,
+        None => random_views(&pvs.root_cell().space(), args.random, args.fov, args.seed),
+    };
+    if views.is_empty() {
+        bail!("no views to report on");
+    }
+    let oracle = if args.no_oracle {
+        None
+    } else {
+        let rasteriser = Rasteriser::best();
+        if let Some(why) = rasteriser.cpu_reason() {
+            eprintln!("note: {why}; the oracle uses the CPU rasteriser");
+        }
+        Some(Oracle::new(&scene, OracleParams::default(), rasteriser)?)
+    };
+    let bar = progress_bar("views", views.len() as u64);
+    let experiment = report::run(
+        &scene,
+        &tracer,
+        &pvs,
+        oracle.as_ref(),
+        &views,
+        &params,
+        &|done| bar.set_position(done as u64),
+    )?;
+    bar.finish_and_clear();
+    if let Some(oracle) = &oracle {
+        warn_gpu_failures(oracle.rasteriser());
+    }
+    let summaries = report_page::write(
+        &args.output,
+        &Page {
+            scene_name: args.file.display().to_string(),
+            scene: &scene,
+            views: &views,
+            params: &params,
+            experiment: &experiment,
+            file: &file,
+            tree,
+        },
+    )?;
+    println!(
+        "wrote {} (index.html, report.json, report.md): {} views, {} methods",
+        args.output.display(),
+        views.len(),
+        summaries.len()
+    );
+    for (name, s) in &summaries {
+        println!(
+            "  {:<10} {:>8.1} objects per view, geometry ratio {}, pixel error {} (worst view {}), {} distinct objects missed",
+            name,
+            s.mean_objects,
+            s.geometry_ratio.map_or("n/a".into(), |g| format!("{g:.2}")),
+            share(s.mean_pixel_error),
+            share(s.worst_pixel_error),
+            s.distinct_missed_objects
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,107 @@
+//! `vis5d stat`: a `.v5d` file's header, its tree's shape and the size of
+//! each coding.
+
+use std::io::{self, Write};
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+use serde::Serialize;
+use vis5d::codec;
+
+use crate::common::{CodingSize, ShapeReport, coding_sizes, print_shape, read_v5d};
+
+#[derive(Args, Debug)]
+pub struct StatArgs {
+    /// The .v5d file.
+    file: PathBuf,
+    /// Print as JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `stat`'s report.
+#[derive(Serialize)]
+struct StatReport {
+    file: String,
+    file_bytes: usize,
+    version: u16,
+    coding: String,
+    grid_bits: u32,
+    objects: usize,
+    fingerprint: String,
+    root_cell: [[f32; 5]; 2],
+    params: Vec<(String, String)>,
+    #[serde(flatten)]
+    tree: ShapeReport,
+    coding_sizes: Vec<CodingSize>,
+}
+
+/// Runs `vis5d stat`.
+pub fn run(args: &StatArgs) -> Result<()> {
+    let (bytes, file) = read_v5d(&args.file)?;
+    let tree = &file.tree;
+    let triangles: Vec<u64> = file.objects.iter().map(|o| o.triangles as u64).collect();
+    let summary = tree.summarize(&triangles);
+    let root = tree.root_cell();
+    let report = StatReport {
+        file: args.file.display().to_string(),
+        file_bytes: bytes.len(),
+        version: codec::VERSION,
+        coding: file.coding.name().to_owned(),
+        grid_bits: tree.grid_bits(),
+        objects: file.objects.len(),
+        fingerprint: format!("{:016x}", file.fingerprint),
+        root_cell: [root.lo, root.hi],
+        params: file
+            .params
+            .lines()
+            .filter_map(|l| l.split_once('='))
+            .map(|(k, v)| (k.to_owned(), v.to_owned()))
+            .collect(),
+        tree: summary.into(),
+        coding_sizes: coding_sizes(tree),
+    };
+    let mut out = io::stdout().lock();
+    if args.json {
+        serde_json::to_writer_pretty(&mut out, &report)?;
+        writeln!(out)?;
+        return Ok(());
+    }
+    let r = &report;
+    writeln!(
+        out,
+        "{}: .v5d version {}, {} bytes",
+        r.file, r.version, r.file_bytes
+    )?;
+    writeln!(
+        out,
+        "  coding           {} (q = {} bits per split value)",
+        r.coding, r.grid_bits
+    )?;
+    writeln!(out, "  objects          {}", r.objects)?;
+    writeln!(out, "  scene            fingerprint {}", r.fingerprint)?;
+    let space = [
+        [root.lo[0], root.lo[1], root.lo[2]],
+        [root.hi[0], root.hi[1], root.hi[2]],
+    ];
+    print_shape(&mut out, space, &r.tree)?;
+    writeln!(out, "  coded tree size  structure bits + set bits = bytes")?;
+    for c in &r.coding_sizes {
+        let mark = if c.coding == r.coding {
+            "  (this file)"
+        } else {
+            ""
+        };
+        writeln!(
+            out,
+            "    {:<8} {:>10} + {:>12} = {:>10} B{mark}",
+            c.coding, c.structure_bits, c.set_bits, c.bytes
+        )?;
+    }
+    writeln!(out, "  build parameters")?;
+    for (k, v) in &r.params {
+        writeln!(out, "    {k:<22} {v}")?;
+    }
+    Ok(())
+}

@@ -1,0 +1,353 @@
+//! The experiment of a report: every view rendered for its ground truth,
+//! then culled by every method, each method timed and measured.
+
+use std::time::Instant;
+
+use super::report_metrics::{MethodSummary, ViewMetrics, ViewTruth, frustum_set, truth};
+use crate::bitset::ObjectSet;
+use crate::geom::Aabb;
+use crate::lazy_grid::{GridParams, LazyGrid};
+use crate::oracle::Oracle;
+use crate::query::{Pvs, View};
+use crate::render::Camera;
+use crate::scene::Scene;
+use crate::trace::Tracer;
+
+/// A visibility method a report compares.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// View-frustum culling: the objects whose bounding box meets the
+    /// frustum.
+    Frustum,
+    /// The vis5d tree (a `.v5d`) queried per view, then frustum culling.
+    Tree,
+    /// The lazy occlusion grid of papers/002 (online, from the eye).
+    LazyGrid,
+    /// The extended-projection oracle of a cube around the eye, within the
+    /// frustum.
+    Oracle,
+}
+
+impl Method {
+    /// Every method, in the report's order.
+    pub const ALL: [Method; 4] = [
+        Method::Frustum,
+        Method::Tree,
+        Method::LazyGrid,
+        Method::Oracle,
+    ];
+
+    /// The method's name in tables and JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Frustum => "frustum",
+            Method::Tree => "vis5d",
+            Method::LazyGrid => "lazy grid",
+            Method::Oracle => "oracle",
+        }
+    }
+
+    /// One sentence saying what the method draws.
+    pub fn description(self) -> &'static str {
+        match self {
+            Method::Frustum => "view-frustum culling: objects whose bounding box meets the frustum",
+            Method::Tree => "the vis5d tree (.v5d) queried per view, then view-frustum culling",
+            Method::LazyGrid => {
+                "the lazy occlusion grid of papers/002: an occlusion buffer with a grid of cells \
+                 updated lazily, object boxes front to back (online, from the eye)"
+            }
+            Method::Oracle => {
+                "the extended-projection oracle of a cube around the eye, within the frustum"
+            }
+        }
+    }
+}
+
+/// Settings of a report's experiment.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReportParams {
+    /// Pixels on a side of the ground-truth images (and of the lazy grid's
+    /// occlusion buffer).
+    pub resolution: u32,
+    /// Cell side of the lazy occlusion grid, in pixels (papers/002: 32).
+    pub grid_cell: u32,
+    /// Side of the oracle's cube around each eye, as a share of the
+    /// scene's diagonal.
+    pub oracle_cell: f32,
+}
+
+impl Default for ReportParams {
+    fn default() -> Self {
+        Self {
+            resolution: 512,
+            grid_cell: 32,
+            oracle_cell: 0.01,
+        }
+    }
+}
+
+impl ReportParams {
+    /// Checks the settings; the error names the bad one.
+    pub fn validate(&self) -> Result<(), ReportError> {
+        let bad = |name, expected, value: &dyn std::fmt::Display| ReportError::Parameter {
+            name,
+            expected,
+            value: value.to_string(),
+        };
+        if !(1..=8192).contains(&self.resolution) {
+            return Err(bad("resolution", "between 1 and 8192", &self.resolution));
+        }
+        if self.grid_cell == 0 || self.grid_cell > self.resolution {
+            return Err(bad(
+                "grid_cell",
+                "between 1 and the resolution",
+                &self.grid_cell,
+            ));
+        }
+        if !(self.oracle_cell.is_finite() && self.oracle_cell > 0.0) {
+            return Err(bad(
+                "oracle_cell",
+                "a positive share of the scene's diagonal",
+                &self.oracle_cell,
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Why a report cannot be made.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ReportError {
+    /// A setting is outside its domain.
+    #[error("invalid report setting: {name} must be {expected}, not {value}")]
+    Parameter {
+        /// The setting.
+        name: &'static str,
+        /// What it must be.
+        expected: &'static str,
+        /// What it was.
+        value: String,
+    },
+    /// No view to report on.
+    #[error("no views to report on: give a camera path with views, or ask for random ones")]
+    NoViews,
+    /// A view has no camera frame.
+    #[error(
+        "view {index} is degenerate (a zero direction, an up vector along it, or a field of view \
+         outside (0, 180) degrees): fix or remove it"
+    )]
+    DegenerateView {
+        /// The view's index.
+        index: usize,
+    },
+    /// The tree was built for other geometry.
+    #[error(
+        "the tree was built for another scene (geometry fingerprint {file:016x}, the scene's is \
+         {scene:016x}): rebuild it with `vis5d build`"
+    )]
+    WrongScene {
+        /// The tree's fingerprint.
+        file: u64,
+        /// The scene's.
+        scene: u64,
+    },
+}
+
+/// One method's results over the views.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MethodRun {
+    /// The method.
+    pub method: Method,
+    /// Per view, its figures.
+    pub per_view: Vec<ViewMetrics>,
+    /// Per view, the objects seen but not drawn.
+    pub missed: Vec<Vec<u32>>,
+}
+
+impl MethodRun {
+    fn new(method: Method) -> Self {
+        Self {
+            method,
+            per_view: Vec::new(),
+            missed: Vec::new(),
+        }
+    }
+
+    /// Records the set `drawn` of one view, taking `seconds`.
+    fn record(&mut self, scene: &Scene, truth: &ViewTruth, drawn: &ObjectSet, seconds: f64) {
+        self.per_view
+            .push(ViewMetrics::of(scene, truth, drawn, seconds));
+        self.missed.push(
+            truth
+                .seen
+                .iter()
+                .map(|&(o, _)| o)
+                .filter(|&o| !drawn.contains(o as usize))
+                .collect(),
+        );
+    }
+
+    /// The method's figures over the views, its geometry ratio against
+    /// `frustum` (the frustum culling's run of the same views).
+    pub fn summary(&self, frustum: &MethodRun) -> MethodSummary {
+        MethodSummary::of(&self.per_view, &frustum.per_view, &self.missed)
+    }
+}
+
+/// The lazy grid's costs for one view, lazy and busy (papers/002 Fig. 8).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+pub struct GridCost {
+    /// Pixel-level queries with lazy updates.
+    pub lazy_pixel_queries: u64,
+    /// Pixel-level queries with busy updates.
+    pub busy_pixel_queries: u64,
+    /// Whole-cell updates with lazy updates.
+    pub lazy_cell_updates: u64,
+    /// Whole-cell updates with busy updates.
+    pub busy_cell_updates: u64,
+    /// Boxes of the hierarchy tested.
+    pub boxes_tested: u64,
+    /// Milliseconds of the lazy pass.
+    pub lazy_ms: f64,
+    /// Milliseconds of the busy pass.
+    pub busy_ms: f64,
+}
+
+/// Everything a report measured.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Experiment {
+    /// Per view, the ground truth.
+    pub truths: Vec<ViewTruth>,
+    /// Seconds spent rendering the ground truth, all views.
+    pub truth_seconds: f64,
+    /// Per method, in [`Method::ALL`] order (the oracle only when one was
+    /// given).
+    pub methods: Vec<MethodRun>,
+    /// Per view, the lazy grid's costs lazy and busy.
+    pub grid_costs: Vec<GridCost>,
+    /// The oracle's cube side, in scene units (when it ran).
+    pub oracle_cell: Option<f32>,
+}
+
+impl Experiment {
+    /// The run of `method`, if it ran.
+    pub fn method(&self, method: Method) -> Option<&MethodRun> {
+        self.methods.iter().find(|m| m.method == method)
+    }
+
+    /// The frustum culling's run, the reference of geometry ratios.
+    pub fn frustum(&self) -> &MethodRun {
+        self.method(Method::Frustum)
+            .expect("frustum culling always runs")
+    }
+}
+
+/// Runs the experiment on `views` of `scene` (traced by `tracer`): for
+/// each view, the ground truth ([`truth`]), then every method: frustum
+/// culling, the tree `pvs` (built for `scene`), the lazy grid (lazy, then
+/// busy for its costs), and the `oracle` when given. `progress` gets the
+/// number of views done.
+pub fn run(
+    scene: &Scene,
+    tracer: &Tracer,
+    pvs: &Pvs,
+    oracle: Option<&Oracle>,
+    views: &[View],
+    params: &ReportParams,
+    progress: &dyn Fn(usize),
+) -> Result<Experiment, ReportError> {
+    params.validate()?;
+    if views.is_empty() {
+        return Err(ReportError::NoViews);
+    }
+    pvs.check_fingerprint(scene.fingerprint())
+        .map_err(|e| ReportError::WrongScene {
+            file: e.file,
+            scene: e.scene,
+        })?;
+    let cameras: Vec<Camera> = views
+        .iter()
+        .enumerate()
+        .map(|(index, v)| {
+            Camera::new(v, params.resolution, params.resolution)
+                .ok_or(ReportError::DegenerateView { index })
+        })
+        .collect::<Result<_, _>>()?;
+    let half = 0.5 * params.oracle_cell * scene.bounds().diagonal();
+    let n = scene.objects().len();
+    let mut runs: Vec<MethodRun> = Method::ALL
+        .iter()
+        .filter(|&&m| m != Method::Oracle || oracle.is_some())
+        .map(|&m| MethodRun::new(m))
+        .collect();
+    let grid = LazyGrid::new(scene);
+    let mut out = Experiment {
+        truths: Vec::with_capacity(views.len()),
+        truth_seconds: 0.0,
+        methods: Vec::new(),
+        grid_costs: Vec::with_capacity(views.len()),
+        oracle_cell: oracle.map(|_| 2.0 * half),
+    };
+    let (mut set, mut frustum) = (ObjectSet::new(n), ObjectSet::new(n));
+    for (i, (view, camera)) in views.iter().zip(&cameras).enumerate() {
+        let start = Instant::now();
+        let t = truth(scene, tracer, camera);
+        out.truth_seconds += start.elapsed().as_secs_f64();
+
+        let start = Instant::now();
+        frustum_set(scene, camera, &mut frustum);
+        let frustum_seconds = start.elapsed().as_secs_f64();
+        run_of(&mut runs, Method::Frustum).record(scene, &t, &frustum, frustum_seconds);
+
+        // The tree's answer holds what any leaf the frustum's directions
+        // meet can see, also outside the frustum; a renderer culls those
+        // with the frustum anyway, so the method is both.
+        let start = Instant::now();
+        pvs.query_view(view, &mut set);
+        set.intersect_with(&frustum);
+        let s = start.elapsed().as_secs_f64() + frustum_seconds;
+        run_of(&mut runs, Method::Tree).record(scene, &t, &set, s);
+
+        let mut grid_params = GridParams {
+            cell_pixels: params.grid_cell,
+            lazy: true,
+        };
+        let start = Instant::now();
+        let lazy = grid.cull(camera, &grid_params, &mut set);
+        let lazy_seconds = start.elapsed().as_secs_f64();
+        run_of(&mut runs, Method::LazyGrid).record(scene, &t, &set, lazy_seconds);
+        grid_params.lazy = false;
+        let start = Instant::now();
+        let busy = grid.cull(camera, &grid_params, &mut set);
+        out.grid_costs.push(GridCost {
+            lazy_pixel_queries: lazy.pixel_queries,
+            busy_pixel_queries: busy.pixel_queries,
+            lazy_cell_updates: lazy.cell_updates,
+            busy_cell_updates: busy.cell_updates,
+            boxes_tested: lazy.boxes_tested,
+            lazy_ms: 1e3 * lazy_seconds,
+            busy_ms: 1e3 * start.elapsed().as_secs_f64(),
+        });
+
+        if let Some(oracle) = oracle {
+            let start = Instant::now();
+            let cell = Aabb::new(view.position - half, view.position + half);
+            let mut kept = oracle.cell(&cell, None).visible;
+            kept.intersect_with(&frustum);
+            let s = start.elapsed().as_secs_f64() + frustum_seconds;
+            run_of(&mut runs, Method::Oracle).record(scene, &t, &kept, s);
+        }
+        out.truths.push(t);
+        progress(i + 1);
+    }
+    out.methods = runs;
+    Ok(out)
+}
+
+/// The run of `method` among `runs`.
+fn run_of(runs: &mut [MethodRun], method: Method) -> &mut MethodRun {
+    runs.iter_mut()
+        .find(|r| r.method == method)
+        .expect("every method that runs has a run")
+}
