@@ -206,16 +206,18 @@ fn never_wrong_against_rays_and_lazy_equals_busy() {
 }
 
 /// The paper's two-list traversal (Fig. 6) against drawing at once
-/// (Fig. 4): objects drawn and pixel queries per view (run with
-/// `--ignored --nocapture`).
+/// (Fig. 4, the default): drawing at once culls at least as much on these
+/// scenes, whose large occluders (walls, floors) lie in front of little
+/// and so are drawn late by Fig. 6 (the module docs' claim). Prints the
+/// objects drawn and pixel queries per view (`--nocapture`).
 #[test]
-#[ignore]
-fn compare_traversals() {
+fn drawing_at_once_culls_at_least_as_much_as_the_papers_traversal() {
     for name in ["apartment.obj", "city.obj", "office.obj"] {
         let scene = crate::scene::load(scene_path(name)).unwrap();
         let n = scene.objects().len();
         let mut out = ObjectSet::new(n);
         let views = random_cameras(&scene, 7, 100, 256);
+        let mut drawn = [0u64; 2];
         for paper in [true, false] {
             let mut grid = LazyGrid::new(&scene);
             grid.paper_draw_order = paper;
@@ -237,7 +239,15 @@ fn compare_traversals() {
                 f as f64 / v,
                 q as f64 / v
             );
+            drawn[paper as usize] = d;
+            assert!(d as usize <= f, "{name}: drew more than the frustum holds");
         }
+        assert!(
+            drawn[0] <= drawn[1],
+            "{name}: Fig. 4 drew {} objects, Fig. 6 {}",
+            drawn[0],
+            drawn[1]
+        );
     }
 }
 
@@ -282,38 +292,6 @@ fn odd_sizes_and_both_traversals_are_never_wrong() {
                     h.object
                 );
             }
-        }
-    }
-}
-
-/// Time per view at 512 x 512 (run with `--ignored --nocapture`).
-#[test]
-#[ignore]
-fn time_per_view_512() {
-    for name in ["apartment.obj", "city.obj", "office.obj"] {
-        let scene = crate::scene::load(scene_path(name)).unwrap();
-        let grid = LazyGrid::new(&scene);
-        let mut out = ObjectSet::new(scene.objects().len());
-        let views = random_cameras(&scene, 99, 200, 512);
-        for lazy in [true, false] {
-            let params = GridParams {
-                lazy,
-                ..GridParams::default()
-            };
-            let start = std::time::Instant::now();
-            let (mut q, mut d) = (0u64, 0u64);
-            for cam in &views {
-                let s = grid.cull(cam, &params, &mut out);
-                q += s.pixel_queries;
-                d += s.objects_drawn;
-            }
-            let per = start.elapsed().as_secs_f64() / views.len() as f64;
-            eprintln!(
-                "{name} 512x512 lazy={lazy}: {:.3} ms per view, {:.1} pixel queries, {:.1} drawn",
-                per * 1e3,
-                q as f64 / views.len() as f64,
-                d as f64 / views.len() as f64
-            );
         }
     }
 }

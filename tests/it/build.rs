@@ -54,6 +54,30 @@ fn default_build_sees_what_renders_see() {
     }
 }
 
+/// Every named preset of the build parameters is valid and builds a tree
+/// that sees what renders see, on the apartment of papers/003.
+#[test]
+fn every_preset_builds_a_tree_that_sees_what_renders_see() {
+    let s = scene::load(crate::committed("apartment.obj")).unwrap();
+    for (name, params) in BuildParams::presets() {
+        params.validate().unwrap();
+        let (tracer, tree) = build_default(&s, &params);
+        let v = VerifyParams {
+            views: 20,
+            resolution: 48,
+            ..VerifyParams::default()
+        };
+        let e = pixel_error(&s, &tracer, &tree, &v);
+        assert!(
+            e.fraction() < 0.001,
+            "{name}: pixel error {} ({:?})",
+            e.fraction(),
+            e.missing_objects
+        );
+        assert!(tree.depth() <= params.max_depth, "{name}");
+    }
+}
+
 /// Two sealed boxy rooms, each with three cubes inside: from inside the
 /// first, every wall and cube of the first is visible (a convex room sees
 /// all of itself) and nothing of the second.

@@ -1,0 +1,97 @@
+//! The extended-projection oracle (papers/001): time per view cell as the
+//! Depth Maps grow (64, 128, 256, 512 pixels on a side), on the CPU
+//! reference and on the GPU where an adapter exists (Mesa's lavapipe on a
+//! machine without one), on street cells of the committed city and on
+//! room cells of the office. Throughput is cells per second. Before each
+//! scene the bench prints the objects each rasteriser hides.
+//!
+//! Run: `cargo bench --bench oracle` (results in notes/oracle.md).
+
+use std::time::Duration;
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use glam::Vec3;
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
+use vis5d::geom::Aabb;
+use vis5d::oracle::{Oracle, OracleParams, Rasteriser};
+use vis5d::random::uniform_point;
+use vis5d::scene::Scene;
+
+/// Cells of `size` (metres, 2 m tall) with their floor on the scene's
+/// lowest level, centres uniform over the scene's footprint (seeded).
+fn cells(scene: &Scene, n: usize, size: f32) -> Vec<Aabb> {
+    let b = scene.bounds();
+    let floor = Aabb::new(
+        Vec3::new(b.min.x, b.min.y, b.min.z + 0.2),
+        Vec3::new(b.max.x - size, b.max.y - size, b.min.z + 0.2),
+    );
+    let mut rng = Pcg64::seed_from_u64(17);
+    (0..n)
+        .map(|_| {
+            let p = uniform_point(&mut rng, &floor);
+            Aabb::new(p, p + Vec3::new(size, size, 2.0))
+        })
+        .collect()
+}
+
+fn bench_scene(c: &mut Criterion, name: &str, cell_size: f32) {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let scene =
+        vis5d::scene::load(root.join("scenes").join(format!("{name}.obj"))).expect("committed");
+    let cells = cells(&scene, 8, cell_size);
+    let mut g = c.benchmark_group(format!("oracle/{name}"));
+    g.throughput(Throughput::Elements(cells.len() as u64));
+    g.sample_size(10);
+    g.measurement_time(Duration::from_secs(5));
+    for gpu in [false, true] {
+        for resolution in [64, 128, 256, 512] {
+            let rasteriser = if gpu {
+                let r = Rasteriser::best();
+                if !r.is_gpu() {
+                    eprintln!("{name}: no GPU ({:?}); GPU rows skipped", r.cpu_reason());
+                    break;
+                }
+                r
+            } else {
+                Rasteriser::cpu()
+            };
+            let label = if gpu { "gpu" } else { "cpu" };
+            let params = OracleParams {
+                resolution,
+                ..OracleParams::default()
+            };
+            let oracle = Oracle::new(&scene, params, rasteriser).expect("valid parameters");
+            let hidden: usize = cells
+                .iter()
+                .map(|cell| scene.objects().len() - oracle.cell(cell, None).visible.count())
+                .sum();
+            eprintln!(
+                "{name} {label} {resolution}: {:.1} of {} objects hidden per cell",
+                hidden as f64 / cells.len() as f64,
+                scene.objects().len()
+            );
+            g.bench_with_input(BenchmarkId::new(label, resolution), &cells, |b, cells| {
+                b.iter(|| {
+                    for cell in cells {
+                        oracle.cell(cell, None);
+                    }
+                })
+            });
+        }
+    }
+    g.finish();
+}
+
+fn oracle(c: &mut Criterion) {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        // Mesa's Vulkan drivers complain on stderr when it is unset.
+        // SAFETY: criterion has started no thread yet.
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
+    }
+    bench_scene(c, "city", 6.0);
+    bench_scene(c, "office", 3.0);
+}
+
+criterion_group!(benches, oracle);
+criterion_main!(benches);
