@@ -1,6 +1,6 @@
 //! Convex polygons in the plane (f64), the one set of 2D helpers of the
 //! oracle's projections, its CPU and GPU rasterisers and its occluder
-//! extraction: signed area, convex hull and clipping.
+//! extraction: signed area, rectangles, convex hull and clipping.
 //!
 //! Polygons are vertex lists, counter-clockwise where a function says so;
 //! the last vertex joins the first.
@@ -14,6 +14,11 @@ pub fn signed_area(p: &[DVec2]) -> f64 {
         a += p[i].perp_dot(p[(i + 1) % p.len()]);
     }
     0.5 * a
+}
+
+/// The rectangle `[min, max]`, counter-clockwise from `min`.
+pub fn rectangle(min: DVec2, max: DVec2) -> Vec<DVec2> {
+    vec![min, DVec2::new(max.x, min.y), max, DVec2::new(min.x, max.y)]
 }
 
 /// The convex hull of points, counter-clockwise (Andrew's monotone chain);
@@ -87,12 +92,7 @@ mod tests {
     use super::*;
 
     fn sq(a: f64, b: f64) -> Vec<DVec2> {
-        vec![
-            DVec2::new(a, a),
-            DVec2::new(b, a),
-            DVec2::new(b, b),
-            DVec2::new(a, b),
-        ]
+        rectangle(DVec2::splat(a), DVec2::splat(b))
     }
 
     #[test]

@@ -44,7 +44,7 @@ use std::sync::{Arc, Mutex};
 use glam::DVec2;
 use wgpu::util::DeviceExt;
 
-use crate::geom::polygon::{clip_half_plane, signed_area};
+use crate::geom::polygon::{clip_half_plane, rectangle, signed_area};
 
 pub use super::oracle_plane::ProjectedOccluder;
 
@@ -788,12 +788,7 @@ fn erode_view(view: &[DVec2], side: f64) -> Option<Vec<DVec2>> {
     }
     let ccw = area2 > 0.0;
     let m = view.len();
-    let mut poly = vec![
-        DVec2::new(-1.0, -1.0),
-        DVec2::new(side + 1.0, -1.0),
-        DVec2::new(side + 1.0, side + 1.0),
-        DVec2::new(-1.0, side + 1.0),
-    ];
+    let mut poly = rectangle(DVec2::splat(-1.0), DVec2::splat(side + 1.0));
     for e in 0..m {
         let (p, q) = (view[e], view[(e + 1) % m]);
         let (a, b) = if ccw { (p, q) } else { (q, p) };

@@ -2,7 +2,7 @@
 //! the CPU rasteriser, on random and adversarial occluders.
 
 use super::*;
-use crate::geom::polygon::convex_hull;
+use crate::geom::polygon::{convex_hull, rectangle};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use std::sync::OnceLock;
@@ -153,12 +153,7 @@ fn check_sound(
 }
 
 fn square(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<DVec2> {
-    vec![
-        DVec2::new(x0, y0),
-        DVec2::new(x1, y0),
-        DVec2::new(x1, y1),
-        DVec2::new(x0, y1),
-    ]
+    rectangle(DVec2::new(x0, y0), DVec2::new(x1, y1))
 }
 
 #[test]

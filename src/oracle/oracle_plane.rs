@@ -224,12 +224,7 @@ mod tests {
     use super::*;
 
     fn sq(a: f64, b: f64) -> Vec<DVec2> {
-        vec![
-            DVec2::new(a, a),
-            DVec2::new(b, a),
-            DVec2::new(b, b),
-            DVec2::new(a, b),
-        ]
+        crate::geom::polygon::rectangle(DVec2::splat(a), DVec2::splat(b))
     }
 
     #[test]
