@@ -75,6 +75,7 @@ struct ReportJson {
     methods: Vec<MethodJson>,
     tree: TreeJson,
     oracle_cell: Option<f32>,
+    oracle_rasteriser: Option<String>,
     grid_cell_pixels: u32,
     grid_costs: Vec<GridCost>,
 }
@@ -188,6 +189,7 @@ pub fn write(dir: &Path, page: &Page) -> Result<Vec<(&'static str, MethodSummary
                 .collect(),
         },
         oracle_cell: e.oracle_cell,
+        oracle_rasteriser: e.oracle_rasteriser.clone(),
         grid_cell_pixels: params.grid_cell,
         grid_costs: e.grid_costs.clone(),
     };
@@ -469,7 +471,10 @@ fn write_files(dir: &Path, r: &ReportJson, e: &Experiment) -> Result<()> {
             format!("{:.1}%", 100.0 * lazy_q as f64 / busy_q as f64)
         },
         match r.oracle_cell {
-            Some(c) => format!(" The oracle's cell: a cube of {c:.3} scene units around the eye."),
+            Some(c) => format!(
+                " The oracle's cell: a cube of {c:.3} scene units around the eye; its depth maps on the {}.",
+                r.oracle_rasteriser.as_deref().unwrap_or("CPU")
+            ),
             None => String::new(),
         }
     );

@@ -228,6 +228,9 @@ pub struct Experiment {
     pub grid_costs: Vec<GridCost>,
     /// The oracle's cube side, in scene units (when it ran).
     pub oracle_cell: Option<f32>,
+    /// Where the oracle's Depth Maps were rasterised ("CPU", or "GPU: "
+    /// and the adapter), when it ran.
+    pub oracle_rasteriser: Option<String>,
 }
 
 impl Experiment {
@@ -288,6 +291,7 @@ pub fn run(
         methods: Vec::new(),
         grid_costs: Vec::with_capacity(views.len()),
         oracle_cell: oracle.map(|_| 2.0 * half),
+        oracle_rasteriser: oracle.map(|o| o.rasteriser().name()),
     };
     let (mut set, mut frustum) = (ObjectSet::new(n), ObjectSet::new(n));
     for (i, (view, camera)) in views.iter().zip(&cameras).enumerate() {

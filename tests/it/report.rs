@@ -68,6 +68,12 @@ fn report_writes_consistent_figures() {
     assert_eq!(j["grid_costs"].as_array().unwrap().len(), 6);
     assert_eq!(j["tree"]["codings"].as_array().unwrap().len(), 3);
     assert!(j["tree"]["build_seconds"].as_f64().is_some());
+    // The oracle's depth maps go to the GPU where there is one (CI
+    // requires one: Mesa's lavapipe).
+    let rasteriser = j["oracle_rasteriser"].as_str().unwrap();
+    if std::env::var_os("VIS5D_REQUIRE_GPU").is_some() {
+        assert!(rasteriser.starts_with("GPU: "), "{rasteriser}");
+    }
     let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
     assert_eq!(html.matches("<svg").count(), 5, "five plots");
     assert!(!html.contains("<script"), "no JavaScript");
