@@ -2,8 +2,9 @@
 //! that the tree says cannot be seen. For random views in the view box
 //! ([`random_views`]), an ID buffer is rendered through the shared
 //! [`Camera`] ([`IdBuffer`]: one ray per pixel, exact tracer), and each
-//! pixel's object is looked up in the set of the leaf its ray falls in. This is the check of issue #3: against rays, not against
-//! the builder's own opinion.
+//! pixel's object is looked up in the set of the leaf its ray falls in.
+//! This is the check of issue #3: against rays, not against the builder's
+//! own opinion.
 
 use crate::geom::cell::direction_to_angles;
 use crate::render::{Camera, IdBuffer, random_views};

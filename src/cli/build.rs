@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use serde::Serialize;
-use vis5d::builder::{BuildParams, BuildStats, PixelError, VerifyParams};
+use vis5d::builder::{BuildError, BuildParams, BuildStats, PixelError, VerifyParams};
 use vis5d::codec::{self, Coding};
 use vis5d::geom::Aabb;
 use vis5d::scene::Scene;
@@ -16,7 +16,7 @@ use vis5d::trace::Tracer;
 use vis5d::tree::TreeSummary;
 
 use crate::common::{
-    CodingSize, ShapeReport, coding_sizes, load_scene, parse_box, parse_pair, print_shape,
+    CodingSize, ShapeReport, coding_sizes, flag, load_scene, parse_box, parse_pair, print_shape,
     progress_bar,
 };
 
@@ -220,7 +220,19 @@ pub fn run(args: &BuildArgs) -> Result<()> {
             .context("cannot set up the thread pool")?;
     }
     let params = args.params();
-    params.validate()?;
+    params.validate().map_err(|e| match &e {
+        BuildError::Parameter { name, .. } => {
+            let flag = match *name {
+                "min_cell_fraction" => "--min-cell".to_owned(),
+                "min_angle_fraction" => "--min-angle".to_owned(),
+                "view_grow" => "--grow".to_owned(),
+                "max_depth (plus the angular cuts)" => "--max-depth".to_owned(),
+                other => flag(other),
+            };
+            anyhow::anyhow!("{flag}: {e}")
+        }
+        _ => e.into(),
+    })?;
     let output = args
         .output
         .clone()

@@ -12,7 +12,7 @@ use vis5d::oracle::{self, CheckParams, LeafCheck, Oracle, Suspect};
 use vis5d::trace::Tracer;
 
 use crate::common::{load_scene, progress_bar, read_v5d};
-use crate::oracle::{OracleFlags, warn_gpu_failures};
+use crate::oracle::{GpuWarning, OracleFlags};
 
 /// How a check ended (errors aside).
 pub enum Outcome {
@@ -137,7 +137,12 @@ pub fn run(args: &CheckArgs) -> Result<Outcome> {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     };
-    let mut run = |cell: &Aabb, hidden: Option<&ObjectSet>| oracle.cell(cell, hidden).visible;
+    let gpu_warning = GpuWarning::default();
+    let mut run = |cell: &Aabb, hidden: Option<&ObjectSet>| {
+        let visible = oracle.cell(cell, hidden).visible;
+        gpu_warning.poll(oracle.rasteriser());
+        visible
+    };
     let report = oracle::check_tree(
         &oracle,
         &tracer,
@@ -147,7 +152,7 @@ pub fn run(args: &CheckArgs) -> Result<Outcome> {
         &progress,
     );
     bar.finish_and_clear();
-    warn_gpu_failures(oracle.rasteriser());
+    gpu_warning.finish(oracle.rasteriser());
     let name = |o: u32| scene.objects()[o as usize].name.as_str();
     let n = report.leaves.len().max(1) as f64;
     let mean =
@@ -213,9 +218,49 @@ pub fn run(args: &CheckArgs) -> Result<Outcome> {
             })
             .collect(),
     };
+    // The outcome does not depend on the printing: a closed pipe on stdout
+    // (`vis5d check ... | head`) must not turn violations into success.
+    let printed = print_summary(
+        args,
+        &json,
+        &oracle.rasteriser().name(),
+        oracle.params().resolution,
+    );
+    if json.violations > 0 {
+        let list: Vec<String> = report
+            .violations()
+            .take(20)
+            .map(|(l, v)| {
+                format!(
+                    "{} (leaf {}, ray from {:?} along {:?})",
+                    name(v.object),
+                    l.node,
+                    v.ray.origin.to_array(),
+                    v.ray.dir.to_array()
+                )
+            })
+            .collect();
+        eprintln!(
+            "error: {} violations: objects hit by a ray of their leaf that the oracle calls hidden (the oracle is wrong): {}",
+            json.violations,
+            list.join("; ")
+        );
+        return Ok(Outcome::Violations);
+    }
+    printed?;
+    Ok(Outcome::Clean)
+}
+
+/// Prints the check's summary (or its JSON) on stdout.
+fn print_summary(
+    args: &CheckArgs,
+    json: &CheckJson,
+    rasteriser: &str,
+    resolution: usize,
+) -> Result<()> {
     let mut out = io::stdout().lock();
     if args.json {
-        serde_json::to_writer(&mut out, &json)?;
+        serde_json::to_writer(&mut out, json)?;
         writeln!(out)?;
     } else {
         writeln!(
@@ -229,9 +274,9 @@ pub fn run(args: &CheckArgs) -> Result<Outcome> {
             json.oracle_cells,
             json.oracle_seconds,
             json.oracle_ms_per_cell,
-            oracle.rasteriser().name(),
-            oracle.params().resolution,
-            oracle.params().resolution
+            rasteriser,
+            resolution,
+            resolution
         )?;
         writeln!(out, "  rays             {:.2} s", json.ray_seconds)?;
         writeln!(
@@ -259,26 +304,5 @@ pub fn run(args: &CheckArgs) -> Result<Outcome> {
         )?;
         writeln!(out, "  violations       {}", json.violations)?;
     }
-    if json.violations > 0 {
-        let list: Vec<String> = report
-            .violations()
-            .take(20)
-            .map(|(l, v)| {
-                format!(
-                    "{} (leaf {}, ray from {:?} along {:?})",
-                    name(v.object),
-                    l.node,
-                    v.ray.origin.to_array(),
-                    v.ray.dir.to_array()
-                )
-            })
-            .collect();
-        eprintln!(
-            "error: {} violations: objects hit by a ray of their leaf that the oracle calls hidden (the oracle is wrong): {}",
-            json.violations,
-            list.join("; ")
-        );
-        return Ok(Outcome::Violations);
-    }
-    Ok(Outcome::Clean)
+    Ok(())
 }

@@ -68,12 +68,33 @@ impl OracleFlags {
     }
 }
 
-/// Warns once if maps failed on the GPU and were redone on the CPU.
-pub fn warn_gpu_failures(r: &Rasteriser) {
-    if let (n @ 1.., Some(first)) = r.gpu_failures() {
-        eprintln!(
-            "warning: {n} depth maps failed on the GPU and were made on the CPU instead (first: {first})"
-        );
+/// Says on stderr, once, as soon as a depth map failed on the GPU (and was
+/// made on the CPU instead), and at the end how many did.
+#[derive(Default)]
+pub struct GpuWarning {
+    warned: std::sync::atomic::AtomicBool,
+}
+
+impl GpuWarning {
+    /// Warns if a map has failed since the start and no warning was given;
+    /// cheap enough to call after every cell.
+    pub fn poll(&self, r: &Rasteriser) {
+        if let (1.., Some(first)) = r.gpu_failures()
+            && !self.warned.swap(true, std::sync::atomic::Ordering::Relaxed)
+        {
+            eprintln!(
+                "warning: the GPU failed to make a depth map ({first}); this map and any other \
+                 that fails are made on the CPU"
+            );
+        }
+    }
+
+    /// At the end: how many maps failed on the GPU, if any.
+    pub fn finish(&self, r: &Rasteriser) {
+        self.poll(r);
+        if let (n @ 1.., _) = r.gpu_failures() {
+            eprintln!("warning: {n} depth maps failed on the GPU and were made on the CPU");
+        }
     }
 }
 
@@ -130,11 +151,12 @@ struct Seconds {
 pub fn run(args: &OracleArgs) -> Result<()> {
     let params = args.flags.params()?;
     let (scene, load) = load_scene(&args.file)?;
+    let rasteriser = args.flags.rasteriser();
     let start = Instant::now();
-    let oracle = Oracle::new(&scene, params, args.flags.rasteriser())?;
+    let oracle = Oracle::new(&scene, params, rasteriser)?;
     let prepare = start.elapsed().as_secs_f64();
     let report: CellReport = oracle.cell(&args.cell, None);
-    warn_gpu_failures(oracle.rasteriser());
+    GpuWarning::default().finish(oracle.rasteriser());
     let names: Vec<&str> = report
         .visible
         .iter()

@@ -7,7 +7,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Result, anyhow, bail};
+use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use vis5d::builder::{self, BuildParams};
 use vis5d::codec;
@@ -18,7 +18,7 @@ use vis5d::report::{self, ReportError, ReportParams};
 use vis5d::trace::Tracer;
 
 use crate::common::{flag, load_scene, progress_bar, read_v5d, read_views};
-use crate::oracle::warn_gpu_failures;
+use crate::oracle::GpuWarning;
 use crate::report_page::{self, Page, TreeSource, share};
 
 #[derive(Args, Debug)]
@@ -57,6 +57,11 @@ pub struct ReportArgs {
     /// Leave the oracle out (it is the slowest method).
     #[arg(long)]
     no_oracle: bool,
+    /// Rasterise the oracle's depth maps on the CPU even when a GPU
+    /// adapter exists (the default uses the GPU through wgpu, and the CPU
+    /// when there is none).
+    #[arg(long)]
+    cpu: bool,
     /// Cell size of the lazy occlusion grid, in pixels (papers/002 used
     /// 32 x 32).
     #[arg(long, default_value_t = 32)]
@@ -124,7 +129,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
             (builder::to_file(&scene, tree, &build_params, None), source)
         }
     };
-    let pvs = Pvs::from_bytes(&codec::write_file(&file))?;
+    let pvs = Pvs::from_bytes(&codec::write_file(&file)).context("the tree")?;
     let views: Vec<View> = match &args.views {
         Some(path) => read_views(path)?,
         None => random_views(&pvs.root_cell().space(), args.random, args.fov, args.seed),
@@ -135,13 +140,19 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     let oracle = if args.no_oracle {
         None
     } else {
-        let rasteriser = Rasteriser::best();
-        if let Some(why) = rasteriser.cpu_reason() {
-            eprintln!("note: {why}; the oracle uses the CPU rasteriser");
-        }
+        let rasteriser = if args.cpu {
+            Rasteriser::cpu()
+        } else {
+            let r = Rasteriser::best();
+            if let Some(why) = r.cpu_reason() {
+                eprintln!("note: {why}; the oracle uses the CPU rasteriser");
+            }
+            r
+        };
         Some(Oracle::new(&scene, OracleParams::default(), rasteriser)?)
     };
     let bar = progress_bar("views", views.len() as u64);
+    let gpu_warning = GpuWarning::default();
     let experiment = report::run(
         &scene,
         &tracer,
@@ -149,11 +160,16 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         oracle.as_ref(),
         &views,
         &params,
-        &|done| bar.set_position(done as u64),
+        &|done| {
+            bar.set_position(done as u64);
+            if let Some(oracle) = &oracle {
+                gpu_warning.poll(oracle.rasteriser());
+            }
+        },
     )?;
     bar.finish_and_clear();
     if let Some(oracle) = &oracle {
-        warn_gpu_failures(oracle.rasteriser());
+        gpu_warning.finish(oracle.rasteriser());
     }
     let summaries = report_page::write(
         &args.output,

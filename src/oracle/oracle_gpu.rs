@@ -216,7 +216,9 @@ impl GpuRasteriser {
     }
 
     /// A rasteriser on a device and queue the caller opened (an engine's
-    /// own, or a test's). It uses Depth32FloatStencil8 when the device was
+    /// own, or a test's), on a Vulkan, Metal or DirectX 12 adapter (an
+    /// OpenGL device is refused: its R32Float render targets fail
+    /// validation). It uses Depth32FloatStencil8 when the device was
     /// opened with `Features::DEPTH32FLOAT_STENCIL8`, else
     /// Depth24PlusStencil8 (both are sound, see `depth_key`), and needs the
     /// device's limits to allow the maps asked for (a side up to
@@ -229,6 +231,17 @@ impl GpuRasteriser {
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Result<Self, GpuError> {
         let info = device.adapter_info();
         let name = describe(&info);
+        if !matches!(
+            info.backend,
+            wgpu::Backend::Vulkan | wgpu::Backend::Metal | wgpu::Backend::Dx12
+        ) {
+            return Err(GpuError::Unsupported {
+                adapter: name,
+                message: "only Vulkan, Metal and DirectX 12 devices are used (R32Float render \
+                          targets fail validation on the OpenGL backend)"
+                    .into(),
+            });
+        }
         let depth_format = if device
             .features()
             .contains(wgpu::Features::DEPTH32FLOAT_STENCIL8)
