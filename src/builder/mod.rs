@@ -50,6 +50,10 @@ use crate::sprt::{SprtError, SprtParams};
 use crate::trace::Tracer;
 use crate::tree::{TreeSummary, VisTree};
 
+/// The thickness given to the flat axes of a view box, as a share of its
+/// diagonal ([`BuildParams::root_box`]).
+pub const FLAT_THICKNESS: f32 = 1e-3;
+
 /// Every parameter of a build. [`BuildParams::default`] is the measured
 /// default (notes/build.md says how each value was chosen).
 #[derive(Clone, Debug, PartialEq)]
@@ -257,9 +261,14 @@ impl BuildParams {
     }
 
     /// The spatial box of the root cell for `scene`.
+    ///
+    /// A flat box (a scene in one plane: a floor plan, a terrain of one
+    /// height) is given a thickness of [`FLAT_THICKNESS`] times its
+    /// diagonal on its flat axes, so that the root cell has a volume.
     pub fn root_box(&self, scene: &Scene) -> Aabb {
         let b = self.view_box.unwrap_or(scene.bounds());
-        b.expanded(self.view_grow * b.diagonal())
+        let b = b.expanded(self.view_grow * b.diagonal());
+        b.thickened(FLAT_THICKNESS * b.diagonal())
     }
 }
 

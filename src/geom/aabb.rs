@@ -104,6 +104,26 @@ impl Aabb {
         }
     }
 
+    /// The box with every side at least `thickness` long (grown evenly
+    /// about its centre where shorter) and, whatever f32 rounding does at
+    /// the box's coordinates, `min < max` on every axis: a flat scene (a
+    /// floor plan, one triangle) still has a volume of viewpoints.
+    pub fn thickened(&self, thickness: f32) -> Aabb {
+        let mut b = *self;
+        for k in 0..3 {
+            let short = thickness - (b.max[k] - b.min[k]);
+            if short > 0.0 {
+                b.min[k] -= 0.5 * short;
+                b.max[k] += 0.5 * short;
+            }
+            if b.min[k] >= b.max[k] {
+                b.min[k] = b.min[k].next_down();
+                b.max[k] = b.max[k].next_up();
+            }
+        }
+        b
+    }
+
     /// The point of the box at relative coordinates `t` (each in `[0, 1]`):
     /// `min + t * (max - min)`. Uniform `t` gives a uniform point.
     pub fn lerp(&self, t: Vec3) -> Vec3 {
@@ -114,6 +134,22 @@ impl Aabb {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn thickened_boxes_have_a_volume() {
+        let flat = Aabb::new(Vec3::new(0.0, 0.0, 2.0), Vec3::new(4.0, 3.0, 2.0));
+        let t = flat.thickened(0.5);
+        assert_eq!(t.min, Vec3::new(0.0, 0.0, 1.75));
+        assert_eq!(t.max, Vec3::new(4.0, 3.0, 2.25));
+        // Far from the origin, where the thickness rounds away.
+        let far = Aabb::new(Vec3::splat(1e9), Vec3::new(1e9 + 1024.0, 1e9 + 1024.0, 1e9));
+        let t = far.thickened(1e-3);
+        assert!(t.min.cmplt(t.max).all(), "{t:?}");
+        assert_eq!(t.min.x, 1e9);
+        // A box with volume is left alone.
+        let solid = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        assert_eq!(solid.thickened(0.5), solid);
+    }
 
     #[test]
     fn empty_box_is_neutral() {

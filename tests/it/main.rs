@@ -4,6 +4,7 @@
 //! `../shared/scenes/` (real scenes made by others; CI has them beside the
 //! checkout). Every random generator is seeded.
 
+mod bad_input;
 mod build;
 mod cli;
 mod gltf_load;
