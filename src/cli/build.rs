@@ -1,7 +1,7 @@
 //! `vis5d build`: the 5D visibility tree of a scene, written to a `.v5d`.
 
 use std::io::{self, Write};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -16,8 +16,8 @@ use vis5d::trace::Tracer;
 use vis5d::tree::TreeSummary;
 
 use crate::common::{
-    CodingSize, ShapeReport, coding_sizes, flag, load_scene, parse_box, parse_pair, print_shape,
-    progress_bar,
+    CodingSize, ShapeReport, check_output, coding_sizes, flag, load_scene, parse_box, parse_pair,
+    print_shape, progress_bar,
 };
 
 #[derive(Args, Debug)]
@@ -239,17 +239,7 @@ pub fn run(args: &BuildArgs) -> Result<()> {
         .unwrap_or_else(|| args.file.with_extension("v5d"));
     if !args.dry_run {
         // Fail before the build, not after it.
-        let dir = output
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        if !dir.is_dir() {
-            bail!(
-                "{}: cannot write the tree there: {} is not a folder",
-                output.display(),
-                dir.display()
-            );
-        }
+        check_output(&output, "tree", &[&args.file])?;
     }
     let (scene, load_seconds) = load_scene(&args.file)?;
     let start = Instant::now();

@@ -21,6 +21,43 @@ pub fn flag(parameter: &str) -> String {
     format!("--{}", parameter.replace('_', "-"))
 }
 
+/// Refuses, before any work, an output that would destroy an input or
+/// something that is not an earlier output: `output` the same file as one
+/// of `inputs` (under any spelling), an existing `output` that is not a
+/// regular file (a device, a FIFO, a folder), or a folder that does not
+/// exist.
+pub fn check_output(output: &Path, what: &str, inputs: &[&Path]) -> Result<()> {
+    let dir = output
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        bail!(
+            "{}: cannot write the {what} there: {} is not a folder",
+            output.display(),
+            dir.display()
+        );
+    }
+    for input in inputs {
+        if vis5d::atomic_write::same_file(output, input) {
+            bail!(
+                "{}: refusing to write the {what} over the input {}: name another output with -o",
+                output.display(),
+                input.display()
+            );
+        }
+    }
+    if let Ok(m) = std::fs::metadata(output)
+        && !m.is_file()
+    {
+        bail!(
+            "{}: refusing to write the {what} there: it exists and is not a regular file",
+            output.display()
+        );
+    }
+    Ok(())
+}
+
 /// Parses `x0,y0,z0,x1,y1,z1`.
 pub fn parse_box(s: &str) -> Result<Aabb, String> {
     let v: Vec<f32> = s

@@ -17,7 +17,7 @@ use vis5d::render::random_views;
 use vis5d::report::{self, ReportError, ReportParams};
 use vis5d::trace::Tracer;
 
-use crate::common::{flag, load_scene, progress_bar, read_v5d, read_views};
+use crate::common::{check_output, flag, load_scene, progress_bar, read_v5d, read_views};
 use crate::oracle::GpuWarning;
 use crate::report_page::{self, Page, TreeSource, share};
 
@@ -93,6 +93,22 @@ impl ReportArgs {
 /// Runs `vis5d report`.
 pub fn run(args: &ReportArgs) -> Result<()> {
     let params = args.params()?;
+    // Fail before the work on an output folder that cannot take the files
+    // or would overwrite an input.
+    if args.output.exists() {
+        if !args.output.is_dir() {
+            bail!(
+                "{}: cannot write the report there: it is not a folder",
+                args.output.display()
+            );
+        }
+        let mut inputs = vec![args.file.as_path()];
+        inputs.extend(args.pvs.as_deref());
+        inputs.extend(args.views.as_deref());
+        for name in report_page::OUTPUTS {
+            check_output(&args.output.join(name), "report", &inputs)?;
+        }
+    }
     let (scene, _) = load_scene(&args.file)?;
     let tracer = Tracer::new(&scene);
     // The tree: given or built.

@@ -392,17 +392,14 @@ fn html_escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
+/// The files a report writes into its folder.
+pub const OUTPUTS: [&str; 3] = ["report.json", "report.md", "index.html"];
+
 fn write_files(dir: &Path, r: &ReportJson, e: &Experiment) -> Result<()> {
     let truths = &e.truths;
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
     let json = serde_json::to_vec_pretty(r)?;
-    let write = |name: &str, bytes: &[u8]| {
-        let path = dir.join(name);
-        vis5d::atomic_write::write_atomic(&path, bytes)
-            .with_context(|| format!("{}: cannot write", path.display()))
-    };
-    write("report.json", &json)?;
     // The tables, shared by the Markdown and the page.
     let mut rows: Vec<[String; 11]> = Vec::new();
     for m in &r.methods {
@@ -521,7 +518,7 @@ fn write_files(dir: &Path, r: &ReportJson, e: &Experiment) -> Result<()> {
     for m in &r.methods {
         writeln!(md, "- **{}**: {}", m.name, m.description)?;
     }
-    write("report.md", md.as_bytes())?;
+
     // The page.
     let mut series: Vec<(&str, Vec<f64>)> = r
         .methods
@@ -690,6 +687,11 @@ fn write_files(dir: &Path, r: &ReportJson, e: &Experiment) -> Result<()> {
         "The tree's sets coded three ways (papers/003 sec. 6).",
     )?;
     writeln!(html, "</body></html>")?;
-    write("index.html", html.as_bytes())?;
+    // The three files together: all written before any is replaced.
+    let files = OUTPUTS.map(|name| dir.join(name));
+    let contents: [&[u8]; 3] = [&json, md.as_bytes(), html.as_bytes()];
+    let pairs: Vec<(&Path, &[u8])> = files.iter().map(|p| p.as_path()).zip(contents).collect();
+    vis5d::atomic_write::write_atomic_all(&pairs)
+        .with_context(|| format!("{}: cannot write the report", dir.display()))?;
     Ok(())
 }

@@ -6,6 +6,8 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use vis5d::scene;
+
+use crate::common::check_output;
 use vis5d::scene::procedural::{self, SceneKind};
 
 #[derive(Args, Debug)]
@@ -30,6 +32,7 @@ pub fn run(args: &SceneArgs) -> Result<()> {
     if scene::SceneFormat::from_path(&args.output) != Some(scene::SceneFormat::Obj) {
         bail!("{}: the output must be an .obj file", args.output.display());
     }
+    check_output(&args.output, "scene", &[])?;
     let start = Instant::now();
     let s = procedural::generate(args.kind, args.seed, args.replicate);
     let header = vec![

@@ -1,6 +1,8 @@
 //! Bad and unusual input (issue 11): each test is named after the defect
 //! it keeps fixed.
 
+#[cfg(unix)]
+use std::os::unix::fs::FileTypeExt;
 use std::path::Path;
 
 use crate::{text, vis5d};
@@ -20,7 +22,10 @@ fn write(dir: &Path, name: &str, contents: &str) -> String {
 fn a_flat_scene_builds_a_tree_that_decodes() {
     let dir = tempfile::tempdir().unwrap();
     let scenes = [
-        ("triangle.obj", "o tri\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".to_owned()),
+        (
+            "triangle.obj",
+            "o tri\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".to_owned(),
+        ),
         (
             "plan.obj",
             "o a\nv 0 0 0\nv 4 0 0\nv 4 3 0\nv 0 3 0\nf 1 2 3 4\n\
@@ -46,7 +51,11 @@ fn a_flat_scene_builds_a_tree_that_decodes() {
         } else {
             "0.2,0.2,0"
         };
-        let dir_arg = if name == "wall.obj" { "0,1,0" } else { "0,0,-1" };
+        let dir_arg = if name == "wall.obj" {
+            "0,1,0"
+        } else {
+            "0,0,-1"
+        };
         let q = vis5d(&[
             "query",
             v5d.to_str().unwrap(),
@@ -58,4 +67,81 @@ fn a_flat_scene_builds_a_tree_that_decodes() {
         assert!(q.status.success(), "{name}: {}", text(&q.stderr));
         assert!(!text(&q.stdout).trim().is_empty(), "{name}: sees nothing");
     }
+}
+
+/// `vis5d build model.obj -o model.obj` overwrote the model with the tree,
+/// also through another spelling of the same path; now refused before any
+/// work, and the model is left as it was.
+#[test]
+fn build_refuses_to_write_over_its_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = std::fs::read_to_string(crate::committed("machine.obj")).unwrap();
+    let model = write(dir.path(), "model.obj", &obj);
+    std::fs::create_dir(dir.path().join("x")).unwrap();
+    let other = dir.path().join("x/../model.obj");
+    for output in [model.clone(), other.to_str().unwrap().to_owned()] {
+        let out = vis5d(&["build", &model, "-o", &output, "--max-depth", "3"]);
+        assert_eq!(out.status.code(), Some(2), "{output}");
+        assert!(
+            text(&out.stderr).contains("refusing to write the tree over the input"),
+            "{}",
+            text(&out.stderr)
+        );
+        assert_eq!(std::fs::read_to_string(&model).unwrap(), obj);
+    }
+}
+
+/// `report -o DIR` where DIR holds one of the report's inputs under one of
+/// the names it writes: refused before any work.
+#[test]
+fn report_refuses_to_write_over_its_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let views = write(
+        dir.path(),
+        "report.json",
+        r#"[{"pos": [0.5, 0.4, 0.3], "dir": [1, 0, 0]}]"#,
+    );
+    let out = vis5d(&[
+        "report",
+        "scenes/machine.obj",
+        "-o",
+        dir.path().to_str().unwrap(),
+        "--views",
+        &views,
+        "--no-oracle",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("refusing to write the report over the input"),
+        "{}",
+        text(&out.stderr)
+    );
+    assert!(std::fs::read_to_string(&views).unwrap().contains("pos"));
+}
+
+/// `-o` onto a device node replaced the node with a plain file.
+#[test]
+#[cfg(unix)]
+fn outputs_onto_special_files_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("pipe.obj");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+    let fifo = fifo.to_str().unwrap();
+    for args in [
+        vec!["build", "scenes/machine.obj", "-o", "/dev/null"],
+        vec!["scene", "city", "-o", fifo],
+    ] {
+        let out = vis5d(&args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = text(&out.stderr);
+        assert!(err.contains("not a regular file"), "{args:?}: {err}");
+    }
+    assert!(
+        std::fs::metadata("/dev/null")
+            .unwrap()
+            .file_type()
+            .is_char_device()
+    );
+    assert!(std::fs::metadata(fifo).unwrap().file_type().is_fifo());
 }
