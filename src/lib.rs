@@ -74,8 +74,9 @@
 //! | [`lazy_grid`] | papers/002 | the lazy occlusion grid (an online baseline) |
 //!
 //! Runtime side (always built): [`geom`] (boxes, 5D cells), [`bitset`],
-//! [`tree`] (the in-memory tree), [`codec`], [`query`], [`atomic_write`],
-//! [`invariant`] (the error of every `validate()`).
+//! [`tree`] (the in-memory tree), [`codec`], [`query`], [`atomic_write`]
+//! and [`input`] (files out and in, safely), [`invariant`] (the error of
+//! every `validate()`).
 //!
 //! Builder side (feature `builder`): [`scene`] (OBJ/glTF loading,
 //! procedural scenes), [`trace`] (the exact BVH tracer), [`random`] (the
@@ -101,6 +102,7 @@ pub mod bitset;
 pub mod builder;
 pub mod codec;
 pub mod geom;
+pub mod input;
 pub mod invariant;
 #[cfg(feature = "builder")]
 pub mod lazy_grid;

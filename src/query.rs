@@ -315,7 +315,8 @@ impl Pvs {
     /// Loads and checks the `.v5d` file at `path`.
     pub fn load(path: impl AsRef<Path>) -> Result<Pvs, PvsError> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(|source| PvsError::Io {
+        let limit = ReadLimits::default().max_file_bytes;
+        let bytes = crate::input::read_regular(path, limit).map_err(|source| PvsError::Io {
             path: path.to_owned(),
             source,
         })?;

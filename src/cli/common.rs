@@ -4,6 +4,7 @@
 
 use std::io::{self, IsTerminal, Write};
 use std::path::Path;
+use std::sync::OnceLock;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -13,7 +14,7 @@ use serde::Serialize;
 use vis5d::codec::{self, Coding, code_size};
 use vis5d::geom::Aabb;
 use vis5d::query::View;
-use vis5d::scene::{self, Scene};
+use vis5d::scene::{self, LoadOptions, Scene};
 use vis5d::tree::{TreeSummary, VisTree};
 
 /// The flag of a library parameter: `grid_cell` is `--grid-cell`.
@@ -111,7 +112,8 @@ pub fn load_scene(path: &Path) -> Result<(Scene, f64)> {
         ProgressBar::hidden()
     };
     let start = Instant::now();
-    let result = scene::load_with_progress(path, &mut |done, total| {
+    let options = LOAD_OPTIONS.get_or_init(LoadOptions::default);
+    let result = scene::load_with(path, options, &mut |done, total| {
         bar.set_length(total);
         bar.set_position(done);
     });
@@ -119,12 +121,26 @@ pub fn load_scene(path: &Path) -> Result<(Scene, f64)> {
     Ok((result?, start.elapsed().as_secs_f64()))
 }
 
+/// Reads and decodes a `.v5d` file (a regular file, within the decoder's
+/// limits).
 pub fn read_v5d(path: &Path) -> Result<(Vec<u8>, codec::V5dFile)> {
-    let bytes = std::fs::read(path)
+    let limits = codec::ReadLimits::default();
+    let bytes = vis5d::input::read_regular(path, limits.max_file_bytes)
         .with_context(|| format!("{}: cannot read the .v5d file", path.display()))?;
-    let file = codec::read_file(&bytes, codec::ReadLimits::default())
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let file =
+        codec::read_file(&bytes, limits).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     Ok((bytes, file))
+}
+
+/// The largest views file read: 256 MiB, some four million views.
+const MAX_VIEWS_BYTES: u64 = 256 << 20;
+
+/// How scenes are read (`--allow-outside-paths`), set once by `main`.
+static LOAD_OPTIONS: OnceLock<LoadOptions> = OnceLock::new();
+
+/// Sets how every command reads scenes; the first call wins.
+pub fn set_load_options(options: LoadOptions) {
+    let _ = LOAD_OPTIONS.set(options);
 }
 
 /// One view of `query --views`.
@@ -145,8 +161,10 @@ fn default_fov() -> f32 {
 /// "fov": degrees}` (square field of view, up = +z unless `dir` is
 /// vertical).
 pub fn read_views(path: &Path) -> Result<Vec<View>> {
-    let text = std::fs::read_to_string(path)
+    let bytes = vis5d::input::read_regular(path, MAX_VIEWS_BYTES)
         .with_context(|| format!("{}: cannot read the views", path.display()))?;
+    let text = String::from_utf8(bytes)
+        .with_context(|| format!("{}: the views are not UTF-8 text", path.display()))?;
     let specs: Vec<ViewSpec> = serde_json::from_str(&text).with_context(|| {
         format!(
             "{}: expected a JSON list of {{\"pos\": [x,y,z], \"dir\": [x,y,z], \"fov\": degrees}}",

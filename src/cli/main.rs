@@ -46,6 +46,12 @@ const EXIT_ERROR: u8 = 2;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Let a glTF model read buffer files outside its own folder (absolute
+    /// paths, `..`, links leading out). By default a model may name only
+    /// files inside its folder, so that a model from elsewhere cannot make
+    /// vis5d read other files as geometry.
+    #[arg(long, global = true)]
+    allow_outside_paths: bool,
 }
 
 #[derive(Subcommand, Debug)]
@@ -132,6 +138,10 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    common::set_load_options(vis5d::scene::LoadOptions {
+        allow_outside_paths: cli.allow_outside_paths,
+        ..Default::default()
+    });
     if matches!(
         cli.command,
         Command::Oracle(_) | Command::Check(_) | Command::Report(_)

@@ -109,6 +109,8 @@ pub fn run(args: &ReportArgs) -> Result<()> {
             check_output(&args.output.join(name), "report", &inputs)?;
         }
     }
+    // A camera path is read (and checked) before the work.
+    let path_views = args.views.as_deref().map(read_views).transpose()?;
     let (scene, _) = load_scene(&args.file)?;
     let tracer = Tracer::new(&scene);
     // The tree: given or built.
@@ -146,8 +148,8 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         }
     };
     let pvs = Pvs::from_bytes(&codec::write_file(&file)).context("the tree")?;
-    let views: Vec<View> = match &args.views {
-        Some(path) => read_views(path)?,
+    let views: Vec<View> = match path_views {
+        Some(views) => views,
         None => random_views(&pvs.root_cell().space(), args.random, args.fov, args.seed),
     };
     if views.is_empty() {

@@ -60,14 +60,19 @@ pub struct V5dFile {
 pub struct ReadLimits {
     /// The most bytes the decoded tree's sets may take.
     pub max_decoded_bytes: usize,
+    /// The most bytes a `.v5d` file read from disk may hold
+    /// ([`crate::query::Pvs::load`]).
+    pub max_file_bytes: u64,
 }
 
 impl Default for ReadLimits {
     /// 1 GiB of decoded sets: 60 times the largest tree measured
-    /// (notes/format.md), and a bound on what a hostile file can ask for.
+    /// (notes/format.md), and a bound on what a hostile file can ask for;
+    /// files of up to 1 GiB.
     fn default() -> Self {
         Self {
             max_decoded_bytes: 1 << 30,
+            max_file_bytes: 1 << 30,
         }
     }
 }

@@ -21,7 +21,7 @@ use glam::{Mat4, Vec3};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
 
-use super::{Scene, SceneBuilder, SceneError, SceneFormat};
+use super::{LoadOptions, Scene, SceneBuilder, SceneError, SceneFormat};
 
 /// Parses glTF or GLB `bytes` read from `path`; side-by-side buffers are
 /// read relative to `path`'s folder.
@@ -29,6 +29,7 @@ pub(super) fn load_gltf(
     path: &Path,
     bytes: &[u8],
     format: SceneFormat,
+    options: &LoadOptions,
 ) -> Result<Scene, SceneError> {
     let err = |message: String| SceneError::Syntax {
         path: path.to_owned(),
@@ -37,7 +38,7 @@ pub(super) fn load_gltf(
     };
     let gltf =
         gltf::Gltf::from_slice(bytes).map_err(|e| err(format!("cannot parse the glTF: {e}")))?;
-    let buffers = load_buffers(path, &gltf)?;
+    let buffers = load_buffers(path, &gltf, options)?;
     let doc = &gltf.document;
 
     // World transforms of the nodes that are part of the scene.
@@ -216,8 +217,13 @@ fn check_accessor(
 }
 
 /// The bytes of every buffer: the GLB binary chunk, a base64 `data:` URI,
-/// or a file beside the glTF.
-fn load_buffers(path: &Path, gltf: &gltf::Gltf) -> Result<Vec<Vec<u8>>, SceneError> {
+/// or a file in the glTF's folder (read only as far as its `byteLength`;
+/// outside the folder only with `options.allow_outside_paths`).
+fn load_buffers(
+    path: &Path,
+    gltf: &gltf::Gltf,
+    options: &LoadOptions,
+) -> Result<Vec<Vec<u8>>, SceneError> {
     let err = |message: String| SceneError::Syntax {
         path: path.to_owned(),
         line: 0,
@@ -241,16 +247,37 @@ fn load_buffers(path: &Path, gltf: &gltf::Gltf) -> Result<Vec<Vec<u8>>, SceneErr
                     .map_err(|e| err(format!("buffer {i} has invalid base64 data: {e}")))?
             }
             gltf::buffer::Source::Uri(uri) => {
-                let file = path
-                    .parent()
-                    .unwrap_or(Path::new(""))
-                    .join(percent_decode(uri));
-                std::fs::read(&file).map_err(|e| {
+                let folder = path.parent().unwrap_or(Path::new(""));
+                let file = folder.join(percent_decode(uri));
+                let outside = || SceneError::OutsidePath {
+                    path: path.to_owned(),
+                    buffer: i,
+                    uri: uri.to_owned(),
+                };
+                if has_scheme(uri) {
+                    // `file:`, `http:`: not a relative path in any case.
+                    return Err(outside());
+                }
+                let cannot = |e: std::io::Error| {
                     err(format!(
                         "buffer {i} file {} cannot be read: {e}",
                         file.display()
                     ))
-                })?
+                };
+                if !options.allow_outside_paths {
+                    // Through links and `..` alike: where the file really is.
+                    let real = file.canonicalize().map_err(cannot)?;
+                    let home = if folder.as_os_str().is_empty() {
+                        Path::new(".").canonicalize()
+                    } else {
+                        folder.canonicalize()
+                    }
+                    .map_err(cannot)?;
+                    if !real.starts_with(&home) {
+                        return Err(outside());
+                    }
+                }
+                crate::input::read_regular_prefix(&file, buffer.length() as u64).map_err(cannot)?
             }
         };
         if data.len() < buffer.length() {
@@ -263,6 +290,19 @@ fn load_buffers(path: &Path, gltf: &gltf::Gltf) -> Result<Vec<Vec<u8>>, SceneErr
         out.push(data);
     }
     Ok(out)
+}
+
+/// Whether a URI starts with a scheme (`file:`, `http:`, ...; RFC 3986:
+/// a letter, then letters, digits, `+`, `-` or `.`, then `:`).
+fn has_scheme(uri: &str) -> bool {
+    match uri.split_once(':') {
+        Some((scheme, _)) => {
+            let mut c = scheme.chars();
+            c.next().is_some_and(|f| f.is_ascii_alphabetic())
+                && c.all(|x| x.is_ascii_alphanumeric() || matches!(x, '+' | '-' | '.'))
+        }
+        None => false,
+    }
 }
 
 /// Decodes `%XX` escapes of a relative URI (glTF URIs are percent-encoded).

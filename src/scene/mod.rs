@@ -191,6 +191,43 @@ pub enum SceneError {
         /// The scene file.
         path: PathBuf,
     },
+    /// A glTF names a buffer file outside its own folder.
+    #[error(
+        "{}: buffer {buffer} names {uri:?}, outside the model's folder: a model may name only \
+         files inside its own folder, as relative paths (to allow it, set \
+         LoadOptions::allow_outside_paths; `vis5d --allow-outside-paths`)",
+        path.display()
+    )]
+    OutsidePath {
+        /// The scene file.
+        path: PathBuf,
+        /// The buffer's index.
+        buffer: usize,
+        /// Its URI, as written.
+        uri: String,
+    },
+}
+
+/// How scene files are read.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// Let a glTF name buffer files outside its own folder (absolute
+    /// paths, `..`, links leading out). Off by default: a model read from
+    /// somewhere else must not make vis5d read `/etc/passwd` as geometry.
+    pub allow_outside_paths: bool,
+    /// The most bytes the scene file may hold (default: no limit but the
+    /// file's own size; buffer files are read only as far as the glTF
+    /// declares).
+    pub max_file_bytes: u64,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        Self {
+            allow_outside_paths: false,
+            max_file_bytes: u64::MAX,
+        }
+    }
 }
 
 fn line_suffix(line: usize) -> String {
@@ -366,6 +403,16 @@ pub fn load_with_progress(
     path: impl AsRef<Path>,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Scene, SceneError> {
+    load_with(path, &LoadOptions::default(), progress)
+}
+
+/// As [`load_with_progress`], reading files as `options` say. Only regular
+/// files are read (a FIFO or a device is refused, not waited on).
+pub fn load_with(
+    path: impl AsRef<Path>,
+    options: &LoadOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Scene, SceneError> {
     let path = path.as_ref();
     let format = SceneFormat::from_path(path).ok_or_else(|| SceneError::UnknownFormat {
         path: path.to_owned(),
@@ -374,13 +421,15 @@ pub fn load_with_progress(
             .map(|e| e.to_string_lossy().into_owned())
             .unwrap_or_default(),
     })?;
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
-        path: path.to_owned(),
-        source,
+    let bytes = crate::input::read_regular(path, options.max_file_bytes).map_err(|source| {
+        SceneError::Io {
+            path: path.to_owned(),
+            source,
+        }
     })?;
     match format {
         SceneFormat::Obj => load_obj::load_obj(path, &bytes, progress),
-        SceneFormat::Gltf | SceneFormat::Glb => load_gltf::load_gltf(path, &bytes, format),
+        SceneFormat::Gltf | SceneFormat::Glb => load_gltf::load_gltf(path, &bytes, format, options),
         SceneFormat::Procedural => unreachable!("no extension maps to Procedural"),
     }
 }

@@ -145,3 +145,52 @@ fn outputs_onto_special_files_are_refused() {
     );
     assert!(std::fs::metadata(fifo).unwrap().file_type().is_fifo());
 }
+
+/// A FIFO given as the scene, the `.v5d` or the views file blocked for
+/// ever, and `/dev/zero` filled memory: only regular files are read.
+#[test]
+#[cfg(unix)]
+fn special_files_as_inputs_are_refused_not_waited_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let mk = |name: &str| {
+        let p = dir.path().join(name);
+        let made = std::process::Command::new("mkfifo").arg(&p).status();
+        assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+        p.to_str().unwrap().to_owned()
+    };
+    let (obj, v5d, views) = (mk("scene.obj"), mk("tree.v5d"), mk("views.json"));
+    let zero = dir.path().join("zero.obj");
+    std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+    let zero = zero.to_str().unwrap();
+    let good = dir.path().join("m.v5d");
+    assert!(
+        vis5d(&[
+            "build",
+            "scenes/machine.obj",
+            "--max-depth",
+            "2",
+            "-o",
+            good.to_str().unwrap()
+        ])
+        .status
+        .success()
+    );
+    let good = good.to_str().unwrap();
+    for args in [
+        vec!["info", &obj],
+        vec!["info", zero],
+        vec!["build", zero, "--dry-run"],
+        vec!["stat", &v5d],
+        vec!["query", &v5d, "--pos", "0,0,0", "--dir", "1,0,0"],
+        vec!["query", good, "--views", &views],
+        vec!["report", "scenes/machine.obj", "-o", "r", "--views", &views],
+    ] {
+        let out = vis5d(&args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        assert!(
+            text(&out.stderr).contains("not a regular file"),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+    }
+}

@@ -370,3 +370,83 @@ fn malformed_documents() {
     let (e, msg) = load_err(doc, &bin);
     assert!(matches!(e, SceneError::Empty { .. }), "{msg}");
 }
+
+/// A glTF whose buffer `uri` named `/etc/passwd` or `../../etc/passwd` was
+/// loaded as geometry (and `/dev/stdin` hung): a model may name only
+/// files inside its own folder unless the caller allows more, and only
+/// regular files are read.
+#[test]
+fn buffers_outside_the_models_folder_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut doc, bin) = hierarchy();
+    let model_dir = dir.path().join("model");
+    std::fs::create_dir(&model_dir).unwrap();
+    std::fs::write(dir.path().join("outside.bin"), &bin).unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(dir.path().join("outside.bin"), model_dir.join("link.bin")).unwrap();
+    let path = model_dir.join("m.gltf");
+    let outside = dir.path().join("outside.bin");
+    let mut uris = vec![
+        "../outside.bin".to_owned(),
+        outside.to_str().unwrap().to_owned(),
+        format!("file://{}", outside.display()),
+        "/etc/passwd".to_owned(),
+        "../../../../../../etc/passwd".to_owned(),
+    ];
+    if cfg!(unix) {
+        uris.push("link.bin".to_owned());
+    }
+    for uri in &uris {
+        doc["buffers"][0]["uri"] = json!(uri);
+        std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+        match scene::load(&path) {
+            Err(SceneError::OutsidePath { buffer: 0, .. }) => {}
+            other => panic!("{uri}: {other:?}"),
+        }
+    }
+    // Allowed by the caller: a file outside loads; a device never does.
+    let allow = scene::LoadOptions {
+        allow_outside_paths: true,
+        ..Default::default()
+    };
+    for uri in ["../outside.bin", "link.bin"] {
+        doc["buffers"][0]["uri"] = json!(uri);
+        std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+        if cfg!(unix) || uri != "link.bin" {
+            check_hierarchy(&scene::load_with(&path, &allow, &mut |_, _| {}).unwrap());
+        }
+    }
+    for uri in ["/dev/stdin", "/dev/zero"] {
+        doc["buffers"][0]["uri"] = json!(uri);
+        std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+        let msg = scene::load_with(&path, &allow, &mut |_, _| {})
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("regular file"), "{uri}: {msg}");
+    }
+}
+
+/// A buffer file was read whole whatever its `byteLength` said: a 3 GB
+/// side file cost 3 GB for a 72-byte buffer. Only the declared bytes are
+/// read now (the side file here is sparse: it costs no disk).
+#[test]
+fn a_buffer_file_is_read_only_as_far_as_its_byte_length() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut doc, bin) = hierarchy();
+    let side = dir.path().join("big.bin");
+    std::fs::write(&side, &bin).unwrap();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&side)
+        .unwrap()
+        .set_len(3_000_000_000)
+        .unwrap();
+    doc["buffers"][0]["uri"] = json!("big.bin");
+    let path = dir.path().join("m.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    check_hierarchy(&scene::load(&path).unwrap());
+    // Shorter than declared: an error naming the buffer.
+    std::fs::write(&side, &bin[..bin.len() / 2]).unwrap();
+    let msg = scene::load(&path).unwrap_err().to_string();
+    assert!(msg.contains("buffer 0") && msg.contains("fewer"), "{msg}");
+}

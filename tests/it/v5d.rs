@@ -291,6 +291,7 @@ fn damaged_files_are_refused_with_a_reason() {
     b[n..].copy_from_slice(&crc.to_le_bytes());
     let small = ReadLimits {
         max_decoded_bytes: 1 << 20,
+        ..ReadLimits::default()
     };
     assert!(matches!(
         codec::read_file(&b, small).unwrap_err(),
