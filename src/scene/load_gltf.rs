@@ -36,8 +36,7 @@ pub(super) fn load_gltf(
         line: 0,
         message,
     };
-    let gltf =
-        gltf::Gltf::from_slice(bytes).map_err(|e| err(format!("cannot parse the glTF: {e}")))?;
+    let gltf = parse(bytes).map_err(|e| err(format!("cannot parse the glTF: {e}")))?;
     let buffers = load_buffers(path, &gltf, options)?;
     let doc = &gltf.document;
 
@@ -290,6 +289,40 @@ fn load_buffers(
         out.push(data);
     }
     Ok(out)
+}
+
+/// Parses and validates a glTF or GLB document. gltf's own validation
+/// (`Gltf::from_slice`) indexes the accessor a primitive's `POSITION`
+/// names without a bounds check and panics on a missing one (gltf-json
+/// 1.4.1, `mesh.rs`): that reference is checked first, then the document
+/// is validated with gltf-json's checks.
+fn parse(bytes: &[u8]) -> Result<gltf::Gltf, String> {
+    use gltf::json::validation::Validate;
+    let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| e.to_string())?;
+    let root = gltf.document.as_json();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            for (semantic, index) in &prim.attributes {
+                if index.value() >= root.accessors.len() {
+                    return Err(format!(
+                        "meshes[{m}].primitives[{p}].attributes.{} names accessor {}, \
+                         but there are {}",
+                        semantic.to_string(),
+                        index.value(),
+                        root.accessors.len()
+                    ));
+                }
+            }
+        }
+    }
+    let mut errors = Vec::new();
+    root.validate(root, gltf::json::Path::new, &mut |path, error| {
+        errors.push(format!("{}: {error}", path()))
+    });
+    if !errors.is_empty() {
+        return Err(format!("invalid glTF: {}", errors.join("; ")));
+    }
+    Ok(gltf)
 }
 
 /// Whether a URI starts with a scheme (`file:`, `http:`, ...; RFC 3986:

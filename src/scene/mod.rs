@@ -191,6 +191,19 @@ pub enum SceneError {
         /// The scene file.
         path: PathBuf,
     },
+    /// The scene's size is outside what vis5d's f32 pipeline resolves.
+    #[error(
+        "{}: the scene's bounding box has a diagonal of {diagonal:e} units, outside the {MIN_EXTENT:e} \
+         to {MAX_EXTENT:e} that vis5d resolves (it works in f32): rescale the model (for \
+         example to metres) and try again",
+        path.display()
+    )]
+    Extent {
+        /// The scene file.
+        path: PathBuf,
+        /// The diagonal of its bounding box (infinite when it overflows).
+        diagonal: f32,
+    },
     /// A glTF names a buffer file outside its own folder.
     #[error(
         "{}: buffer {buffer} names {uri:?}, outside the model's folder: a model may name only \
@@ -207,6 +220,16 @@ pub enum SceneError {
         uri: String,
     },
 }
+
+/// The smallest scene diagonal vis5d accepts. Below it the tracer's rays
+/// escape closed rooms (the apartment scaled to 1e-15 lost 8% of its
+/// pixels; at 1e-12 it was exact; notes/reliability.md).
+pub const MIN_EXTENT: f32 = 1e-10;
+
+/// The largest scene diagonal vis5d accepts. Above it f32 arithmetic
+/// loses the scene (the apartment scaled to 1e16 lost 4% of its pixels,
+/// 1e30 made obvhs's BVH build panic; 1e15 was exact).
+pub const MAX_EXTENT: f32 = 1e14;
 
 /// How scene files are read.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -6,7 +6,8 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use super::{
-    LoadReport, Object, Scene, SceneError, SceneFormat, Triangle, is_degenerate, triangle_area,
+    LoadReport, MAX_EXTENT, MIN_EXTENT, Object, Scene, SceneError, SceneFormat, Triangle,
+    is_degenerate, triangle_area,
 };
 use crate::geom::Aabb;
 
@@ -120,6 +121,13 @@ impl SceneBuilder {
             .objects
             .iter()
             .fold(Aabb::EMPTY, |b, o| b.union(&o.bounds));
+        let diagonal = bounds.diagonal();
+        if !(MIN_EXTENT..=MAX_EXTENT).contains(&diagonal) {
+            return Err(SceneError::Extent {
+                path: path.to_owned(),
+                diagonal,
+            });
+        }
         Ok(Scene {
             triangles: self.triangles,
             area_cdf: self.area_cdf,
@@ -134,6 +142,7 @@ impl SceneBuilder {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use super::{MAX_EXTENT, MIN_EXTENT};
     use glam::Vec3;
 
     #[test]

@@ -194,3 +194,32 @@ fn special_files_as_inputs_are_refused_not_waited_on() {
         );
     }
 }
+
+/// Coordinates of 1e30 or 3e38 panicked inside obvhs's BVH build, and
+/// scenes far outside f32's comfortable range gave silently wrong sets:
+/// such scenes are refused with a message when loaded.
+#[test]
+fn scenes_whose_size_f32_cannot_resolve_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let tri = |c: &str| {
+        format!(
+            "o a\nv 0 0 0\nv {c} 0 0\nv 0 {c} 0\nf 1 2 3\no b\nv 0 0 {c}\nv {c} 0 {c}\nv 0 {c} {c}\nf 4 5 6\n"
+        )
+    };
+    for c in ["1e30", "3e38", "1e16", "1e-12"] {
+        let model = write(dir.path(), &format!("s{c}.obj"), &tri(c));
+        for cmd in ["info", "build"] {
+            let out = vis5d(&[cmd, &model]);
+            assert_eq!(out.status.code(), Some(2), "{cmd} {c}");
+            let err = text(&out.stderr);
+            assert!(err.contains("rescale the model"), "{cmd} {c}: {err}");
+            assert!(!err.contains("panicked"), "{cmd} {c}: {err}");
+        }
+    }
+    // Within the range: a kilometre-wide and a millimetre-wide scene.
+    for c in ["1000", "0.001"] {
+        let model = write(dir.path(), &format!("s{c}.obj"), &tri(c));
+        let out = vis5d(&["build", &model, "--dry-run", "--max-depth", "3"]);
+        assert!(out.status.success(), "{c}: {}", text(&out.stderr));
+    }
+}

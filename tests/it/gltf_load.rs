@@ -450,3 +450,23 @@ fn a_buffer_file_is_read_only_as_far_as_its_byte_length() {
     let msg = scene::load(&path).unwrap_err().to_string();
     assert!(msg.contains("buffer 0") && msg.contains("fewer"), "{msg}");
 }
+
+/// A primitive whose POSITION named a missing accessor panicked inside
+/// gltf-json's validation: now an error naming the reference.
+#[test]
+fn a_missing_position_accessor_is_an_error_not_a_panic() {
+    let (mut doc, bin) = document(
+        &[tri_mesh(Some("m"))],
+        json!([{"mesh": 0}]),
+        json!([{"nodes": [0]}]),
+    );
+    doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(5);
+    let (e, msg) = load_err(doc.clone(), &bin);
+    assert!(matches!(e, SceneError::Syntax { .. }), "{msg}");
+    assert!(msg.contains("POSITION names accessor 5"), "{msg}");
+    // Other dangling references are gltf-json's validation errors.
+    doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(0);
+    doc["nodes"][0]["mesh"] = json!(9);
+    let (_, msg) = load_err(doc, &bin);
+    assert!(msg.contains("invalid glTF"), "{msg}");
+}
