@@ -142,7 +142,6 @@ impl SceneBuilder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use super::{MAX_EXTENT, MIN_EXTENT};
     use glam::Vec3;
 
     #[test]
