@@ -33,22 +33,22 @@ use crate::geom::cell::{Cell, DIMS};
 #[derive(Debug, thiserror::Error)]
 pub enum PvsError {
     /// The file cannot be read.
-    #[error("{}: cannot read the .v5d file: {source}", path.display())]
+    // Note: the causes are in the messages, not `source()`s, so that a
+    // chain printed whole (`anyhow`'s `{:#}`) says them once.
+    #[error("{}: cannot read the .v5d file: {cause}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
         /// What the operating system said.
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The file is not a valid `.v5d` file.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {cause}", path.display())]
     File {
         /// The file.
         path: PathBuf,
         /// What is wrong with it.
-        #[source]
-        source: CodecError,
+        cause: CodecError,
     },
 }
 
@@ -316,13 +316,13 @@ impl Pvs {
     pub fn load(path: impl AsRef<Path>) -> Result<Pvs, PvsError> {
         let path = path.as_ref();
         let limit = ReadLimits::default().max_file_bytes;
-        let bytes = crate::input::read_regular(path, limit).map_err(|source| PvsError::Io {
+        let bytes = crate::input::read_regular(path, limit).map_err(|cause| PvsError::Io {
             path: path.to_owned(),
-            source,
+            cause,
         })?;
-        Pvs::from_bytes(&bytes).map_err(|source| PvsError::File {
+        Pvs::from_bytes(&bytes).map_err(|cause| PvsError::File {
             path: path.to_owned(),
-            source,
+            cause,
         })
     }
 

@@ -40,6 +40,10 @@ pub struct SprtParams {
     pub max_rays: u32,
 }
 
+/// The largest ray cap of a test that builds accept: each undecided object
+/// of each cell may cost that many rays.
+pub const MAX_RAY_CAP: u32 = 1_000_000;
+
 /// Parameters of the test outside their domain.
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
 pub enum SprtError {
@@ -65,9 +69,9 @@ pub enum SprtError {
         /// b.
         b: f64,
     },
-    /// The ray cap is 0.
-    #[error("the SPRT's ray cap must be at least 1")]
-    RayCap,
+    /// The ray cap is 0 or above [`MAX_RAY_CAP`].
+    #[error("the SPRT's ray cap must be in 1..={MAX_RAY_CAP}, not {0}")]
+    RayCap(u32),
 }
 
 impl SprtParams {
@@ -79,7 +83,7 @@ impl SprtParams {
         reject: 0.2,
         prior_a: 1.0,
         prior_b: 50.0,
-        max_rays: u32::MAX,
+        max_rays: MAX_RAY_CAP,
     };
 
     /// Checks that every parameter is in its domain; the error says which
@@ -101,8 +105,8 @@ impl SprtParams {
                 b: self.prior_b,
             });
         }
-        if self.max_rays == 0 {
-            return Err(SprtError::RayCap);
+        if !(1..=MAX_RAY_CAP).contains(&self.max_rays) {
+            return Err(SprtError::RayCap(self.max_rays));
         }
         Ok(())
     }

@@ -1,7 +1,7 @@
 //! One node of the recursive build: the cache of cell rays, the set, the
 //! decision to split, the recursion (module docs of [`super`]).
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
 
 use rand::SeedableRng;
@@ -33,6 +33,11 @@ pub(super) struct Ctx<'a> {
     pub misses_decision: (u32, crate::sprt::Decision),
     /// Finished measure, in units of 2^-40 of the root's.
     pub done: AtomicU64,
+    /// Nodes made so far (the root included), against
+    /// [`BuildParams::max_nodes`].
+    pub nodes: AtomicU64,
+    /// Set when a split was refused for the node budget: the build fails.
+    pub over_budget: AtomicBool,
     pub progress: &'a (dyn Fn(f64) + Sync),
 }
 
@@ -172,6 +177,18 @@ pub(super) fn build_node(
     } else {
         0
     };
+    // The node budget. Whether it is exceeded does not depend on the
+    // schedule: while no split is refused, the nodes made are those of the
+    // whole tree, so a refusal happens exactly when that tree has more
+    // nodes than the budget (and the build then fails).
+    let split = split.filter(|_| {
+        let made = ctx.nodes.fetch_add(2, Ordering::Relaxed) + 2;
+        let within = made <= params.max_nodes;
+        if !within {
+            ctx.over_budget.store(true, Ordering::Relaxed);
+        }
+        within
+    });
     let set = builder_leaf::visible_set(ctx, &cell, candidates, proven, seed, min_misses, stats);
     let Some((dim, code)) = split else {
         ctx.finished(&cell);

@@ -36,7 +36,7 @@ mod builder_node;
 mod builder_split;
 mod builder_verify;
 
-use std::sync::atomic::AtomicU64;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
 
 pub use builder_verify::{PixelError, VerifyParams, pixel_error};
@@ -102,6 +102,11 @@ pub struct BuildParams {
     pub view_grow: f32,
     /// The seed of every random stream.
     pub seed: u64,
+    /// The most nodes the tree may have: a build that would make more
+    /// fails (deterministically: exactly when the whole tree has more)
+    /// rather than running for hours or out of memory. Default 2^20; the
+    /// trees measured have 2k-7k nodes (notes/build.md).
+    pub max_nodes: u64,
 }
 
 impl Default for BuildParams {
@@ -130,6 +135,7 @@ impl Default for BuildParams {
             view_box: None,
             view_grow: 0.0,
             seed: 1,
+            max_nodes: 1 << 20,
         }
     }
 }
@@ -155,6 +161,16 @@ pub enum BuildError {
         prior_b: f64,
         /// A.
         accept: f64,
+    },
+    /// The tree would have more nodes than [`BuildParams::max_nodes`].
+    #[error(
+        "the tree would have more than {max_nodes} nodes: raise the node budget (--max-nodes) \
+         if the machine has the memory, or coarsen the tree (a smaller --max-depth, larger \
+         --min-cell and --min-angle, a higher --split-threshold)"
+    )]
+    TooManyNodes {
+        /// The budget.
+        max_nodes: u64,
     },
     /// A parameter is outside its domain.
     #[error("invalid build parameter: {name} must be {expected}, not {value}")]
@@ -210,11 +226,26 @@ impl BuildParams {
             expected: expected.to_owned(),
             value: value.to_string(),
         };
-        if self.internal_miss_factor == 0 {
-            return Err(bad("internal_miss_factor", "at least 1", &0));
-        }
-        if self.cache_rays == 0 {
-            return Err(bad("cache_rays", "at least 1", &0));
+        let counts: [(&'static str, u64, std::ops::RangeInclusive<u64>); 5] = [
+            (
+                "internal_miss_factor",
+                self.internal_miss_factor.into(),
+                1..=1_000,
+            ),
+            ("cache_rays", self.cache_rays.into(), 1..=1_000_000),
+            ("angular_candidates", self.angular_candidates.into(), 1..=64),
+            (
+                "rejection_budget",
+                self.rejection_budget.into(),
+                1..=10_000_000,
+            ),
+            ("max_nodes", self.max_nodes, 1..=u32::MAX as u64),
+        ];
+        for (name, value, range) in counts {
+            if !range.contains(&value) {
+                let expected = format!("in {}..={}", range.start(), range.end());
+                return Err(bad(name, &expected, &value));
+            }
         }
         if !(0.0..1.0).contains(&self.split_threshold) {
             return Err(bad("split_threshold", "in [0, 1)", &self.split_threshold));
@@ -223,14 +254,14 @@ impl BuildParams {
             ("min_cell_fraction", self.min_cell_fraction),
             ("min_angle_fraction", self.min_angle_fraction),
         ] {
-            if !(f > 0.0 && f < 0.5) {
-                return Err(bad(name, "in (0, 0.5)", &f));
+            if !(1e-6..0.5).contains(&f) {
+                return Err(bad(name, "in [1e-6, 0.5)", &f));
             }
         }
-        if !self.angular_leaves.is_power_of_two() {
+        if !self.angular_leaves.is_power_of_two() || self.angular_leaves > 256 {
             return Err(bad(
                 "angular_leaves",
-                "a power of two",
+                "a power of two up to 256",
                 &self.angular_leaves,
             ));
         }
@@ -245,8 +276,8 @@ impl BuildParams {
                 &deepest,
             ));
         }
-        if !(self.view_grow >= 0.0 && self.view_grow.is_finite()) {
-            return Err(bad("view_grow", "finite and >= 0", &self.view_grow));
+        if !(0.0..=100.0).contains(&self.view_grow) {
+            return Err(bad("view_grow", "in [0, 100] (diagonals)", &self.view_grow));
         }
         if let Some(b) = self.view_box
             && !(b.min.is_finite() && b.max.is_finite() && b.min.cmplt(b.max).all())
@@ -453,6 +484,8 @@ pub fn build(
             .misses_to_invisible()
             .saturating_mul(params.internal_miss_factor),
         done: AtomicU64::new(0),
+        nodes: AtomicU64::new(1),
+        over_budget: AtomicBool::new(false),
         progress,
     };
     let candidates = ObjectSet::full(scene.objects().len());
@@ -466,6 +499,11 @@ pub fn build(
         Vec::new(),
         &mut stats,
     );
+    if ctx.over_budget.load(Ordering::Relaxed) {
+        return Err(BuildError::TooManyNodes {
+            max_nodes: params.max_nodes,
+        });
+    }
     let mut nodes = Vec::new();
     built.flatten_into(&mut nodes);
     let tree = VisTree::from_parts(root, params.grid_bits, scene.objects().len(), nodes);

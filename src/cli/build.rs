@@ -19,6 +19,7 @@ use crate::common::{
     CodingSize, ShapeReport, check_output, coding_sizes, flag, load_scene, parse_box, parse_pair,
     print_shape, progress_bar,
 };
+use crate::memory;
 
 #[derive(Args, Debug)]
 pub struct BuildArgs {
@@ -41,56 +42,66 @@ pub struct BuildArgs {
     json: bool,
     /// The positions to build for, as x0,y0,z0,x1,y1,z1 [default: the
     /// scene's bounding box].
-    #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box)]
+    #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box, allow_hyphen_values = true)]
     view_box: Option<Aabb>,
-    /// Grow the view box by this fraction of its diagonal on every side.
-    #[arg(long, default_value_t = 0.0)]
+    /// Grow the view box by this fraction of its diagonal on every side
+    /// [0 to 100].
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     grow: f32,
     /// Seed of every random stream: the same seed gives the same tree,
     /// whatever the thread count.
     #[arg(long, default_value_t = BuildParams::default().seed)]
     seed: u64,
-    /// Threads [default: all cores].
-    #[arg(long)]
-    threads: Option<usize>,
-    /// SPRT: the visible fraction separating visible from invisible.
-    #[arg(long, default_value_t = BuildParams::default().sprt.s_thresh)]
+    /// Threads [1 to 1024; default: all cores].
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    threads: Option<u16>,
+    /// SPRT: the visible fraction separating visible from invisible
+    /// [above 0, below 1].
+    #[arg(long, default_value_t = BuildParams::default().sprt.s_thresh, allow_hyphen_values = true)]
     s_thresh: f64,
-    /// SPRT: odds above which an object is visible (the paper's A).
-    #[arg(long, default_value_t = BuildParams::default().sprt.accept)]
+    /// SPRT: odds above which an object is visible (the paper's A) [finite,
+    /// above B].
+    #[arg(long, default_value_t = BuildParams::default().sprt.accept, allow_hyphen_values = true)]
     accept: f64,
-    /// SPRT: odds below which an object is invisible (the paper's B).
-    #[arg(long, default_value_t = BuildParams::default().sprt.reject)]
+    /// SPRT: odds below which an object is invisible (the paper's B)
+    /// [above 0, below A].
+    #[arg(long, default_value_t = BuildParams::default().sprt.reject, allow_hyphen_values = true)]
     reject: f64,
-    /// SPRT: the prior Beta(a, b) on the visible fraction, as a,b.
+    /// SPRT: the prior Beta(a, b) on the visible fraction, as a,b [both
+    /// finite and above 0].
     #[arg(long, value_name = "A,B", value_parser = parse_pair,
-          default_value = "1,50")]
+          default_value = "1,50", allow_hyphen_values = true)]
     prior: (f64, f64),
-    /// SPRT: rays after which an undecided object is kept as visible.
-    #[arg(long, default_value_t = BuildParams::default().sprt.max_rays)]
+    /// SPRT: rays after which an undecided object is kept as visible [1 to
+    /// 1,000,000].
+    #[arg(long, default_value_t = BuildParams::default().sprt.max_rays, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     max_rays: u32,
     /// Internal nodes declare an object invisible only after this many
     /// times the misses the SPRT needs (their verdict holds for every cell
-    /// below).
-    #[arg(long, default_value_t = BuildParams::default().internal_miss_factor)]
+    /// below) [1 to 1,000].
+    #[arg(long, default_value_t = BuildParams::default().internal_miss_factor, value_parser = clap::value_parser!(u32).range(1..=1_000))]
     internal_miss_factor: u32,
-    /// Uniform cell rays cached per cell to score splits.
-    #[arg(long, default_value_t = BuildParams::default().cache_rays)]
+    /// Uniform cell rays cached per cell to score splits [1 to
+    /// 1,000,000].
+    #[arg(long, default_value_t = BuildParams::default().cache_rays, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     cache_rays: u32,
-    /// Split only when the effectiveness E(A, B) exceeds this.
-    #[arg(long, default_value_t = BuildParams::default().split_threshold)]
+    /// Split only when the effectiveness E(A, B) exceeds this [0 to below
+    /// 1].
+    #[arg(long, default_value_t = BuildParams::default().split_threshold, allow_hyphen_values = true)]
     split_threshold: f64,
-    /// The deepest a leaf may be.
-    #[arg(long, default_value_t = BuildParams::default().max_depth)]
+    /// The deepest a leaf may be [0 to 64, less the angular cuts].
+    #[arg(long, default_value_t = BuildParams::default().max_depth, value_parser = clap::value_parser!(u32).range(0..=64))]
     max_depth: u32,
-    /// The smallest cell in x, y, z, as a fraction of the root's extent.
-    #[arg(long, default_value_t = BuildParams::default().min_cell_fraction)]
+    /// The smallest cell in x, y, z, as a fraction of the root's extent
+    /// [1e-6 to below 0.5].
+    #[arg(long, default_value_t = BuildParams::default().min_cell_fraction, allow_hyphen_values = true)]
     min_cell: f32,
-    /// The smallest cell in theta and phi, as a fraction of 2 pi and pi.
-    #[arg(long, default_value_t = BuildParams::default().min_angle_fraction)]
+    /// The smallest cell in theta and phi, as a fraction of 2 pi and pi
+    /// [1e-6 to below 0.5].
+    #[arg(long, default_value_t = BuildParams::default().min_angle_fraction, allow_hyphen_values = true)]
     min_angle: f32,
     /// Split a cell only if its set holds at least this many triangles
-    /// (the paper: 500).
+    /// (the paper: 500) [any count].
     #[arg(long, default_value_t = BuildParams::default().min_visible_triangles)]
     min_visible_triangles: u64,
     /// Split x, y, z only, then cut each final cell into
@@ -98,26 +109,32 @@ pub struct BuildArgs {
     #[arg(long)]
     spatial_only: bool,
     /// With --spatial-only: angular intervals per final cell (a power of
-    /// two; the paper used 8).
-    #[arg(long, default_value_t = 1)]
+    /// two; the paper used 8) [1 to 256].
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=256))]
     angular_leaves: u32,
-    /// Candidate split values per angular dimension.
-    #[arg(long, default_value_t = BuildParams::default().angular_candidates)]
+    /// Candidate split values per angular dimension [1 to 64].
+    #[arg(long, default_value_t = BuildParams::default().angular_candidates, value_parser = clap::value_parser!(u32).range(1..=64))]
     angular_candidates: u32,
-    /// Split values lie on a 2^q grid of the node's range.
-    #[arg(long, default_value_t = BuildParams::default().grid_bits)]
+    /// Split values lie on a 2^q grid of the node's range [1 to 16].
+    #[arg(long, default_value_t = BuildParams::default().grid_bits, value_parser = clap::value_parser!(u32).range(1..=16))]
     grid_bits: u32,
     /// Rejected samples per object and cell after which it is kept as
-    /// visible.
-    #[arg(long, default_value_t = BuildParams::default().rejection_budget)]
+    /// visible [1 to 10,000,000].
+    #[arg(long, default_value_t = BuildParams::default().rejection_budget, value_parser = clap::value_parser!(u32).range(1..=10_000_000))]
     rejection_budget: u32,
     /// After building, render this many random views and report the pixel
-    /// error.
-    #[arg(long, default_value_t = 0)]
+    /// error [0 to 1,000,000].
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
     verify_views: u32,
-    /// Pixels per side of each verification view.
-    #[arg(long, default_value_t = 64)]
+    /// Pixels per side of each verification view [1 to 8192; the memory
+    /// a view needs is checked first].
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=8192))]
     verify_resolution: u32,
+    /// The most nodes the tree may have [1 to 4,294,967,295; lowered to
+    /// what the memory budget holds]: a build that would make more fails,
+    /// rather than running for hours or out of memory.
+    #[arg(long, default_value_t = BuildParams::default().max_nodes, value_parser = clap::value_parser!(u64).range(1..=4_294_967_295))]
+    max_nodes: u64,
 }
 
 impl BuildArgs {
@@ -146,6 +163,7 @@ impl BuildArgs {
             view_box: self.view_box,
             view_grow: self.grow,
             seed: self.seed,
+            max_nodes: self.max_nodes,
         }
     }
 }
@@ -215,11 +233,11 @@ struct PixelErrorReport {
 pub fn run(args: &BuildArgs) -> Result<()> {
     if let Some(n) = args.threads {
         rayon::ThreadPoolBuilder::new()
-            .num_threads(n.max(1))
+            .num_threads(n.into())
             .build_global()
             .context("cannot set up the thread pool")?;
     }
-    let params = args.params();
+    let mut params = args.params();
     params.validate().map_err(|e| match &e {
         BuildError::Parameter { name, .. } => {
             let flag = match *name {
@@ -241,7 +259,30 @@ pub fn run(args: &BuildArgs) -> Result<()> {
         // Fail before the build, not after it.
         check_output(&output, "tree", &[&args.file])?;
     }
+    // Work whose size is known: the caches of cell rays (a 5D point and a
+    // hit per ray, one cache per level of each thread's recursion) and
+    // one verification view's rays and hits.
+    let threads = rayon::current_num_threads() as u64;
+    memory::check(
+        u64::from(args.cache_rays) * 32 * (u64::from(args.max_depth) + 1) * threads,
+        "--cache-rays",
+        "cache fewer rays or build shallower trees",
+    )?;
+    if args.verify_views > 0 {
+        memory::check(
+            u64::from(args.verify_resolution).pow(2) * 48,
+            "--verify-resolution",
+            "render smaller verification views",
+        )?;
+    }
     let (scene, load_seconds) = load_scene(&args.file)?;
+    // The tree's nodes (a set of bits per object, and bookkeeping) within
+    // the memory budget: the node budget is lowered to what it holds.
+    let node_bytes = 2 * (scene.objects().len().div_ceil(64) as u64 * 8 + 64);
+    let by_memory = memory::budget().map_or(u64::MAX, |b| b / node_bytes);
+    if by_memory < params.max_nodes {
+        params.max_nodes = by_memory.max(1);
+    }
     let start = Instant::now();
     let tracer = Tracer::new(&scene);
     let bvh_seconds = start.elapsed().as_secs_f64();
@@ -249,6 +290,14 @@ pub fn run(args: &BuildArgs) -> Result<()> {
     let bar = progress_bar("building", 1000);
     let (tree, stats) = vis5d::builder::build(&scene, &tracer, &params, &|f| {
         bar.set_position((f * 1000.0) as u64)
+    })
+    .map_err(|e| match e {
+        BuildError::TooManyNodes { .. } if params.max_nodes < args.max_nodes => anyhow::anyhow!(
+            "{e} (the memory budget, {}, holds {} nodes of this scene)",
+            memory::human(memory::budget().unwrap_or(0)),
+            params.max_nodes
+        ),
+        e => e.into(),
     })?;
     bar.finish_and_clear();
     tree.validate()
@@ -259,7 +308,7 @@ pub fn run(args: &BuildArgs) -> Result<()> {
     let verify = (args.verify_views > 0).then(|| {
         let v = VerifyParams {
             views: args.verify_views,
-            resolution: args.verify_resolution.max(1),
+            resolution: args.verify_resolution,
             ..VerifyParams::default()
         };
         vis5d::builder::pixel_error(&scene, &tracer, &tree, &v)

@@ -12,6 +12,7 @@ use vis5d::oracle::{self, CheckParams, LeafCheck, Oracle, Suspect};
 use vis5d::trace::Tracer;
 
 use crate::common::{load_scene, progress_bar, read_v5d};
+use crate::memory;
 use crate::oracle::{GpuWarning, OracleFlags};
 
 /// How a check ended (errors aside).
@@ -32,15 +33,17 @@ pub struct CheckArgs {
     model: PathBuf,
     /// The .v5d file to check.
     pvs: PathBuf,
-    /// Check this many leaves, picked at random (seeded) [default: all].
-    #[arg(long, value_name = "N")]
-    sample: Option<usize>,
+    /// Check this many leaves, picked at random (seeded) [1 or more;
+    /// default: all].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    sample: Option<u64>,
     /// Ray draws aimed at each object in question (suspects, and objects
-    /// the leaf keeps but the oracle hides).
-    #[arg(long, default_value_t = 1000)]
+    /// the leaf keeps but the oracle hides) [1 to 1,000,000].
+    #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     burst: u32,
-    /// Uniform rays of each leaf cell for its ground-truth set.
-    #[arg(long, default_value_t = 4096)]
+    /// Uniform rays of each leaf cell for its ground-truth set [1 to
+    /// 1,000,000].
+    #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     truth_rays: u32,
     /// Seed of the leaf sample and the rays.
     #[arg(long, default_value_t = 1)]
@@ -109,9 +112,12 @@ struct CheckJson<'a> {
 /// Runs `vis5d check`.
 pub fn run(args: &CheckArgs) -> Result<Outcome> {
     let params = args.flags.params()?;
-    if args.sample == Some(0) {
-        anyhow::bail!("--sample must be at least 1");
-    }
+    // Each thread holds one leaf's ground-truth rays and their hits.
+    memory::check(
+        u64::from(args.truth_rays.max(args.burst)) * 48 * rayon::current_num_threads() as u64,
+        "--truth-rays and --burst",
+        "cast fewer rays per leaf",
+    )?;
     let (scene, _) = load_scene(&args.model)?;
     let (_, file) = read_v5d(&args.pvs)?;
     if file.fingerprint != scene.fingerprint() {
@@ -126,7 +132,7 @@ pub fn run(args: &CheckArgs) -> Result<Outcome> {
     let tracer = Tracer::new(&scene);
     let oracle = Oracle::new(&scene, params, args.flags.rasteriser())?;
     let check_params = CheckParams {
-        sample: args.sample,
+        sample: args.sample.map(|n| n.min(usize::MAX as u64) as usize),
         burst: args.burst,
         truth_rays: args.truth_rays,
         seed: args.seed,

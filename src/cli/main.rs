@@ -11,6 +11,7 @@ mod build;
 mod check;
 mod common;
 mod info;
+mod memory;
 mod oracle;
 mod query;
 mod report;
@@ -52,6 +53,12 @@ struct Cli {
     /// vis5d read other files as geometry.
     #[arg(long, global = true)]
     allow_outside_paths: bool,
+    /// The most memory a run may use (such as 8G or 512M) [default: what
+    /// the system says is available]. Work whose size is known before it
+    /// starts (pixel buffers, ray batches, scene copies, the tree's node
+    /// budget) is checked against it, and refused with how much it needs.
+    #[arg(long, global = true, value_name = "SIZE", value_parser = memory::parse_size)]
+    max_memory: Option<u64>,
 }
 
 #[derive(Subcommand, Debug)]
@@ -138,6 +145,7 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    memory::set_max_memory(cli.max_memory);
     common::set_load_options(vis5d::scene::LoadOptions {
         allow_outside_paths: cli.allow_outside_paths,
         ..Default::default()

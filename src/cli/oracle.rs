@@ -17,20 +17,22 @@ use crate::common::{flag, load_scene, parse_box};
 #[derive(Args, Debug, Clone)]
 pub struct OracleFlags {
     /// Depth Map pixels on a side (a power of two; the paper found 256
-    /// best).
+    /// best) [4 to 4096].
     #[arg(long, default_value_t = 256)]
     pub resolution: usize,
     /// How far each projection plane reaches beyond the cell's face, in
-    /// multiples of its distance from the face (the paper used 1.5).
-    #[arg(long, default_value_t = 1.5)]
+    /// multiples of its distance from the face (the paper used 1.5) [0 or
+    /// more, finite].
+    #[arg(long, default_value_t = 1.5, allow_hyphen_values = true)]
     pub extension: f64,
-    /// The most occluders drawn into one Depth Map (the largest first).
-    #[arg(long, default_value_t = 4096)]
-    pub max_occluders: usize,
+    /// The most occluders drawn into one Depth Map (the largest first) [1
+    /// to 1,000,000].
+    #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    pub max_occluders: u32,
     /// Projection planes per face of the cell: the best position, then
-    /// those that hide most objects the others do not.
-    #[arg(long, default_value_t = 2)]
-    pub planes_per_face: usize,
+    /// those that hide most objects the others do not [1 to 16].
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=16))]
+    pub planes_per_face: u8,
     /// Rasterise the Depth Maps on the CPU even when a GPU adapter exists
     /// (the default uses the GPU through wgpu, and the CPU when there is
     /// none).
@@ -44,8 +46,8 @@ impl OracleFlags {
         let p = OracleParams {
             resolution: self.resolution,
             extension: self.extension,
-            max_occluders: self.max_occluders,
-            planes_per_face: self.planes_per_face,
+            max_occluders: self.max_occluders as usize,
+            planes_per_face: self.planes_per_face.into(),
             ..OracleParams::default()
         };
         p.validate().map_err(|e| match &e {

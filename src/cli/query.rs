@@ -28,8 +28,9 @@ pub struct QueryArgs {
     /// down].
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     up: Option<Vec3>,
-    /// The field of view in degrees, horizontal and vertical.
-    #[arg(long, default_value_t = 90.0)]
+    /// The field of view in degrees, horizontal and vertical [above 0,
+    /// below 180].
+    #[arg(long, default_value_t = 90.0, allow_hyphen_values = true)]
     fov: f32,
     /// Answer every view of this JSON file instead.
     #[arg(long, value_name = "VIEWS.json", conflicts_with_all = ["pos", "box", "dir"])]
@@ -45,12 +46,8 @@ pub struct QueryArgs {
 
 /// Runs `vis5d query`.
 pub fn run(args: &QueryArgs) -> Result<()> {
-    let pvs = Pvs::load(&args.file)?;
-    if let Some(model) = &args.scene {
-        let (scene, _) = load_scene(model)?;
-        pvs.check_fingerprint(scene.fingerprint())
-            .map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
-    }
+    // The views first (flags and file): bad ones are refused before the
+    // tree is read.
     let views: Vec<View> = match &args.views {
         Some(path) => read_views(path)?,
         None => {
@@ -74,6 +71,12 @@ pub fn run(args: &QueryArgs) -> Result<()> {
             vec![v]
         }
     };
+    let pvs = Pvs::load(&args.file)?;
+    if let Some(model) = &args.scene {
+        let (scene, _) = load_scene(model)?;
+        pvs.check_fingerprint(scene.fingerprint())
+            .map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
+    }
     let mut set = pvs.new_set();
     let mut answers: Vec<Vec<&str>> = Vec::with_capacity(views.len());
     for v in &views {

@@ -18,6 +18,7 @@ use vis5d::report::{self, ReportError, ReportParams};
 use vis5d::trace::Tracer;
 
 use crate::common::{check_output, flag, load_scene, progress_bar, read_v5d, read_views};
+use crate::memory;
 use crate::oracle::GpuWarning;
 use crate::report_page::{self, Page, TreeSource, share};
 
@@ -38,21 +39,22 @@ pub struct ReportArgs {
     #[arg(long, value_name = "VIEWS.json")]
     views: Option<PathBuf>,
     /// How many random views (eye uniform in the tree's view box,
-    /// direction uniform) when no `--views` file is given.
-    #[arg(long, default_value_t = 50)]
-    random: usize,
-    /// Field of view of the random views, degrees.
-    #[arg(long, default_value_t = 90.0)]
+    /// direction uniform) when no `--views` file is given [1 to 100,000].
+    #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    random: u32,
+    /// Field of view of the random views, degrees [above 0, below 180].
+    #[arg(long, default_value_t = 90.0, allow_hyphen_values = true)]
     fov: f32,
     /// Seed of the random views.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Pixels on a side of the ground-truth images.
+    /// Pixels on a side of the ground-truth images [1 to 8192; the memory
+    /// a view needs is checked first].
     #[arg(long, default_value_t = 512)]
     resolution: u32,
     /// Size of the oracle's cell around each eye, as a share of the
-    /// scene's diagonal (a cube).
-    #[arg(long, default_value_t = 0.01)]
+    /// scene's diagonal (a cube) [above 0, finite].
+    #[arg(long, default_value_t = 0.01, allow_hyphen_values = true)]
     oracle_cell: f32,
     /// Leave the oracle out (it is the slowest method).
     #[arg(long)]
@@ -63,7 +65,7 @@ pub struct ReportArgs {
     #[arg(long)]
     cpu: bool,
     /// Cell size of the lazy occlusion grid, in pixels (papers/002 used
-    /// 32 x 32).
+    /// 32 x 32) [1 to the resolution].
     #[arg(long, default_value_t = 32)]
     grid_cell: u32,
 }
@@ -74,9 +76,7 @@ impl ReportArgs {
         if !(self.fov > 0.0 && self.fov < 180.0) {
             bail!("--fov must be between 0 and 180 degrees");
         }
-        if self.views.is_none() && self.random == 0 {
-            bail!("--random must be at least 1 (or give --views)");
-        }
+
         let params = ReportParams {
             resolution: self.resolution,
             grid_cell: self.grid_cell,
@@ -86,6 +86,12 @@ impl ReportArgs {
             ReportError::Parameter { name, .. } => anyhow!("{}: {e}", flag(name)),
             _ => e.into(),
         })?;
+        // A view's ground truth (rays and hits), the lazy grid's buffer.
+        memory::check(
+            u64::from(self.resolution).pow(2) * 64,
+            "--resolution",
+            "render smaller views",
+        )?;
         Ok(params)
     }
 }
@@ -150,7 +156,12 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     let pvs = Pvs::from_bytes(&codec::write_file(&file)).context("the tree")?;
     let views: Vec<View> = match path_views {
         Some(views) => views,
-        None => random_views(&pvs.root_cell().space(), args.random, args.fov, args.seed),
+        None => random_views(
+            &pvs.root_cell().space(),
+            args.random as usize,
+            args.fov,
+            args.seed,
+        ),
     };
     if views.is_empty() {
         bail!("no views to report on");

@@ -8,6 +8,11 @@ use clap::Args;
 use vis5d::scene;
 
 use crate::common::check_output;
+use crate::memory;
+
+/// Memory per generated triangle: its corners, area table entry and
+/// grouping while generating, and its OBJ text while writing.
+const BYTES_PER_TRIANGLE: u64 = 256;
 use vis5d::scene::procedural::{self, SceneKind};
 
 #[derive(Args, Debug)]
@@ -33,6 +38,15 @@ pub fn run(args: &SceneArgs) -> Result<()> {
         bail!("{}: the output must be an .obj file", args.output.display());
     }
     check_output(&args.output, "scene", &[])?;
+    // The copies' triangles, their tables and their text, from one copy.
+    let one = procedural::generate(args.kind, args.seed, 1)
+        .triangles()
+        .len() as u64;
+    memory::check(
+        one * u64::from(args.replicate) * BYTES_PER_TRIANGLE,
+        "--replicate",
+        "make fewer copies",
+    )?;
     let start = Instant::now();
     let s = procedural::generate(args.kind, args.seed, args.replicate);
     let header = vec![

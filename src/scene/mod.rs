@@ -117,13 +117,14 @@ pub struct LoadReport {
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// The file could not be opened or read.
-    #[error("{}: cannot read the scene file: {source}", path.display())]
+    // Note: `cause` is in the message, not a `source()`, so that a chain
+    // printed whole (`anyhow`'s `{:#}`) says it once.
+    #[error("{}: cannot read the scene file: {cause}", path.display())]
     Io {
         /// The scene file.
         path: PathBuf,
         /// What the operating system said.
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The extension names no format vis5d reads.
     #[error(
@@ -444,10 +445,10 @@ pub fn load_with(
             .map(|e| e.to_string_lossy().into_owned())
             .unwrap_or_default(),
     })?;
-    let bytes = crate::input::read_regular(path, options.max_file_bytes).map_err(|source| {
+    let bytes = crate::input::read_regular(path, options.max_file_bytes).map_err(|cause| {
         SceneError::Io {
             path: path.to_owned(),
-            source,
+            cause,
         }
     })?;
     match format {

@@ -223,3 +223,136 @@ fn scenes_whose_size_f32_cannot_resolve_are_refused() {
         assert!(out.status.success(), "{c}: {}", text(&out.stderr));
     }
 }
+
+/// Flags that asked for more than the machine has aborted on a failed
+/// allocation (86 GB of cached rays, 45 GB of pixels), ran for ever, or
+/// panicked; every numeric flag now has a range, and work whose size is
+/// known is checked against the memory budget first.
+#[test]
+fn flags_that_would_exhaust_the_machine_are_refused() {
+    let m = "scenes/machine.obj";
+    for (args, want) in [
+        (
+            vec!["build", m, "--cache-rays", "4294967295"],
+            "--cache-rays",
+        ),
+        (
+            vec!["build", m, "--verify-resolution", "100000"],
+            "--verify-resolution",
+        ),
+        (
+            vec!["build", m, "--angular-leaves", "1048576"],
+            "--angular-leaves",
+        ),
+        (
+            vec!["build", m, "--verify-views", "4294967295"],
+            "--verify-views",
+        ),
+        (vec!["build", m, "--grow", "1e38", "--dry-run"], "--grow"),
+        (
+            vec!["build", m, "--min-cell", "1e-30", "--dry-run"],
+            "--min-cell",
+        ),
+        (vec!["build", m, "--max-rays", "0"], "--max-rays"),
+        (
+            vec!["check", m, "x.v5d", "--truth-rays", "4294967295"],
+            "--truth-rays",
+        ),
+        (
+            vec!["report", m, "-o", "r", "--random", "1000000000"],
+            "--random",
+        ),
+        (
+            vec!["report", m, "-o", "r", "--random", "18446744073709551615"],
+            "--random",
+        ),
+        (
+            vec!["scene", "forest", "--replicate", "100000", "-o", "f.obj"],
+            "--replicate",
+        ),
+        // Known sizes against a memory budget.
+        (
+            vec![
+                "build",
+                m,
+                "--dry-run",
+                "--verify-views",
+                "1",
+                "--verify-resolution",
+                "8192",
+                "--max-memory",
+                "100M",
+            ],
+            "would need about 3.0 GiB",
+        ),
+        (
+            vec![
+                "scene",
+                "forest",
+                "--replicate",
+                "5000",
+                "-o",
+                "f.obj",
+                "--max-memory",
+                "1G",
+            ],
+            "--replicate would need",
+        ),
+        (
+            vec![
+                "report",
+                m,
+                "-o",
+                "r",
+                "--resolution",
+                "8192",
+                "--max-memory",
+                "1G",
+            ],
+            "--resolution would need",
+        ),
+    ] {
+        let out = vis5d(&args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = text(&out.stderr);
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+    // A tree that would never end is cut off by the node budget.
+    let out = vis5d(&[
+        "build",
+        m,
+        "--dry-run",
+        "--max-depth",
+        "64",
+        "--split-threshold",
+        "0",
+        "--min-cell",
+        "1e-6",
+        "--min-angle",
+        "1e-6",
+        "--max-nodes",
+        "3000",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("more than 3000 nodes"),
+        "{}",
+        text(&out.stderr)
+    );
+    // Negative values parse without `=` (and are then refused or used).
+    let out = vis5d(&[
+        "build",
+        m,
+        "--dry-run",
+        "--view-box",
+        "-1,-1,-1,1,1,1",
+        "--max-depth",
+        "2",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let out = vis5d(&[
+        "query", "x.v5d", "--pos", "0,0,0", "--dir", "1,0,0", "--fov", "-1",
+    ]);
+    assert!(text(&out.stderr).contains("--fov"), "{}", text(&out.stderr));
+}
