@@ -239,14 +239,14 @@ pub fn run(args: &CheckArgs) -> Result<Outcome> {
             .map(|(l, v)| {
                 format!(
                     "{} (leaf {}, ray from {:?} along {:?})",
-                    name(v.object),
+                    crate::common::printable(name(v.object)),
                     l.node,
                     v.ray.origin.to_array(),
                     v.ray.dir.to_array()
                 )
             })
             .collect();
-        eprintln!(
+        say!(
             "error: {} violations: objects hit by a ray of their leaf that the oracle calls hidden (the oracle is wrong): {}",
             json.violations,
             list.join("; ")

@@ -17,6 +17,27 @@ use vis5d::query::View;
 use vis5d::scene::{self, LoadOptions, Scene};
 use vis5d::tree::{TreeSummary, VisTree};
 
+/// A name from a file (an object, a parameter), safe to print as text:
+/// control characters (a newline, a terminal escape) are escaped as in
+/// Rust string literals, so a crafted name cannot forge lines of output or
+/// drive the terminal. JSON output escapes on its own.
+pub fn printable(name: &str) -> std::borrow::Cow<'_, str> {
+    if name.chars().any(char::is_control) {
+        name.chars()
+            .map(|c| {
+                if c.is_control() {
+                    c.escape_default().to_string()
+                } else {
+                    c.to_string()
+                }
+            })
+            .collect::<String>()
+            .into()
+    } else {
+        name.into()
+    }
+}
+
 /// The flag of a library parameter: `grid_cell` is `--grid-cell`.
 pub fn flag(parameter: &str) -> String {
     format!("--{}", parameter.replace('_', "-"))

@@ -7,6 +7,15 @@
 //! library's validated parameters before any work starts. Errors are
 //! printed once, here; a closed pipe on stdout is not an error.
 
+/// `eprintln!` that never panics: when stderr cannot be written (closed,
+/// full), the message is lost, not the run.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 mod build;
 mod check;
 mod common;
@@ -178,15 +187,22 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            say!("error: {e:#}");
             ExitCode::from(EXIT_ERROR)
         }
     }
 }
 
-/// Whether the error is a write to a closed pipe (`vis5d ... | head`).
+/// Whether the error is a write to a closed pipe (`vis5d ... | head`),
+/// in text or in JSON.
 fn is_broken_pipe(e: &anyhow::Error) -> bool {
-    e.chain()
-        .filter_map(|c| c.downcast_ref::<io::Error>())
-        .any(|e| e.kind() == io::ErrorKind::BrokenPipe)
+    e.chain().any(|c| {
+        c.downcast_ref::<io::Error>()
+            .map(io::Error::kind)
+            .or_else(|| {
+                c.downcast_ref::<serde_json::Error>()
+                    .and_then(serde_json::Error::io_error_kind)
+            })
+            == Some(io::ErrorKind::BrokenPipe)
+    })
 }

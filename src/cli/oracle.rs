@@ -11,7 +11,7 @@ use serde::Serialize;
 use vis5d::geom::Aabb;
 use vis5d::oracle::{CellReport, Oracle, OracleError, OracleParams, Rasteriser};
 
-use crate::common::{flag, load_scene, parse_box};
+use crate::common::{flag, load_scene, parse_box, printable};
 
 /// Settings shared by `oracle` and `check`.
 #[derive(Args, Debug, Clone)]
@@ -64,7 +64,7 @@ impl OracleFlags {
         }
         let r = Rasteriser::best();
         if let Some(why) = r.cpu_reason() {
-            eprintln!("note: {why}; using the CPU rasteriser");
+            say!("note: {why}; using the CPU rasteriser");
         }
         r
     }
@@ -84,7 +84,7 @@ impl GpuWarning {
         if let (1.., Some(first)) = r.gpu_failures()
             && !self.warned.swap(true, std::sync::atomic::Ordering::Relaxed)
         {
-            eprintln!(
+            say!(
                 "warning: the GPU failed to make a depth map ({first}); this map and any other \
                  that fails are made on the CPU"
             );
@@ -95,7 +95,7 @@ impl GpuWarning {
     pub fn finish(&self, r: &Rasteriser) {
         self.poll(r);
         if let (n @ 1.., _) = r.gpu_failures() {
-            eprintln!("warning: {n} depth maps failed on the GPU and were made on the CPU");
+            say!("warning: {n} depth maps failed on the GPU and were made on the CPU");
         }
     }
 }
@@ -245,7 +245,7 @@ pub fn run(args: &OracleArgs) -> Result<()> {
         s.load, s.prepare, s.cell, s.select, s.rasterise, s.test, json.backend
     )?;
     for n in &json.potentially_visible {
-        writeln!(out, "{n}")?;
+        writeln!(out, "{}", printable(n))?;
     }
     Ok(())
 }

@@ -9,7 +9,7 @@ use glam::Vec3;
 use vis5d::geom::Aabb;
 use vis5d::query::{Pvs, View};
 
-use crate::common::{load_scene, parse_box, parse_vec3, read_views};
+use crate::common::{load_scene, parse_box, parse_vec3, printable, read_views};
 
 #[derive(Args, Debug)]
 pub struct QueryArgs {
@@ -77,42 +77,49 @@ pub fn run(args: &QueryArgs) -> Result<()> {
         pvs.check_fingerprint(scene.fingerprint())
             .map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
     }
+    // Each answer is printed as it comes (a long camera path is never
+    // held whole).
     let mut set = pvs.new_set();
-    let mut answers: Vec<Vec<&str>> = Vec::with_capacity(views.len());
-    for v in &views {
+    let mut acc = pvs.new_set();
+    let mut out = io::BufWriter::new(io::stdout().lock());
+    let many = args.views.is_some();
+    if args.json && many {
+        write!(out, "[")?;
+    }
+    for (i, v) in views.iter().enumerate() {
         match args.positions {
             Some(b) => {
                 let r = vis5d::query::frustum_angles(v.dir, v.up, v.fov_x, v.fov_y);
-                let mut acc = pvs.new_set();
+                acc.clear();
                 for &(t0, t1, p0, p1) in r.boxes() {
                     pvs.query_range(&b, (t0, t1), (p0, p1), &mut set);
                     acc.union_with(&set);
                 }
-                set = acc;
+                std::mem::swap(&mut set, &mut acc);
             }
             None => pvs.query_view(v, &mut set),
         }
-        answers.push(set.iter().map(|o| pvs.objects()[o].name.as_str()).collect());
-    }
-    let mut out = io::stdout().lock();
-    if args.json {
-        if args.views.is_some() {
-            serde_json::to_writer(&mut out, &answers)?;
+        let names: Vec<&str> = set.iter().map(|o| pvs.objects()[o].name.as_str()).collect();
+        if args.json {
+            if many && i > 0 {
+                write!(out, ",")?;
+            }
+            serde_json::to_writer(&mut out, &names)?;
         } else {
-            serde_json::to_writer(&mut out, &answers[0])?;
-        }
-        writeln!(out)?;
-    } else if args.views.is_some() {
-        for (i, names) in answers.iter().enumerate() {
-            writeln!(out, "# view {i}: {} objects", names.len())?;
+            if many {
+                writeln!(out, "# view {i}: {} objects", names.len())?;
+            }
             for n in names {
-                writeln!(out, "{n}")?;
+                writeln!(out, "{}", printable(n))?;
             }
         }
-    } else {
-        for n in &answers[0] {
-            writeln!(out, "{n}")?;
-        }
     }
+    if args.json {
+        if many {
+            write!(out, "]")?;
+        }
+        writeln!(out)?;
+    }
+    out.flush()?;
     Ok(())
 }

@@ -4,6 +4,7 @@
 //! [`vis5d::report::run`]; this file turns the flags into its parameters,
 //! loads the inputs and writes the outputs (`report_page.rs`).
 
+use std::io::{self, Write};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -174,7 +175,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         } else {
             let r = Rasteriser::best();
             if let Some(why) = r.cpu_reason() {
-                eprintln!("note: {why}; the oracle uses the CPU rasteriser");
+                say!("note: {why}; the oracle uses the CPU rasteriser");
             }
             r
         };
@@ -212,14 +213,17 @@ pub fn run(args: &ReportArgs) -> Result<()> {
             tree,
         },
     )?;
-    println!(
+    let mut out = io::stdout().lock();
+    writeln!(
+        out,
         "wrote {} (index.html, report.json, report.md): {} views, {} methods",
         args.output.display(),
         views.len(),
         summaries.len()
-    );
+    )?;
     for (name, s) in &summaries {
-        println!(
+        writeln!(
+            out,
             "  {:<10} {:>8.1} objects per view, geometry ratio {}, pixel error {} (worst view {}), {} distinct objects missed",
             name,
             s.mean_objects,
@@ -227,7 +231,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
             share(s.mean_pixel_error),
             share(s.worst_pixel_error),
             s.distinct_missed_objects
-        );
+        )?;
     }
     Ok(())
 }

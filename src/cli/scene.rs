@@ -62,7 +62,7 @@ pub fn run(args: &SceneArgs) -> Result<()> {
     ];
     scene::write_obj_file(&s, &header, &args.output)
         .with_context(|| format!("{}: cannot write the scene", args.output.display()))?;
-    eprintln!(
+    say!(
         "wrote {}: {} {} objects, {} triangles ({:.2} s)",
         args.output.display(),
         args.kind,

@@ -9,7 +9,7 @@ use clap::Args;
 use serde::Serialize;
 use vis5d::codec;
 
-use crate::common::{CodingSize, ShapeReport, coding_sizes, print_shape, read_v5d};
+use crate::common::{CodingSize, ShapeReport, coding_sizes, print_shape, printable, read_v5d};
 
 #[derive(Args, Debug)]
 pub struct StatArgs {
@@ -101,7 +101,7 @@ pub fn run(args: &StatArgs) -> Result<()> {
     }
     writeln!(out, "  build parameters")?;
     for (k, v) in &r.params {
-        writeln!(out, "    {k:<22} {v}")?;
+        writeln!(out, "    {:<22} {}", printable(k), printable(v))?;
     }
     Ok(())
 }

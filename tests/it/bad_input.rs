@@ -356,3 +356,107 @@ fn flags_that_would_exhaust_the_machine_are_refused() {
     ]);
     assert!(text(&out.stderr).contains("--fov"), "{}", text(&out.stderr));
 }
+
+/// Object names with a newline or a terminal escape were printed raw,
+/// forging lines of output or driving the terminal: text output escapes
+/// control characters (JSON escapes them on its own).
+#[test]
+fn names_with_control_characters_are_printed_escaped() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = write(
+        dir.path(),
+        "evil.obj",
+        "o red\u{1b}[31mwall\nv 0 0 0\nv 4 0 0\nv 4 0 3\nv 0 0 3\nf 1 2 3 4\n\
+         o floor\nv 0 -2 0\nv 4 -2 0\nv 4 2 0\nf 5 6 7\n",
+    );
+    assert!(
+        vis5d(&["build", &model, "--max-depth", "3"])
+            .status
+            .success()
+    );
+    let v5d = dir.path().join("evil.v5d");
+    let out = vis5d(&[
+        "query",
+        v5d.to_str().unwrap(),
+        "--pos",
+        "2,-1,1",
+        "--dir",
+        "0,1,0",
+    ]);
+    let stdout = text(&out.stdout);
+    assert!(stdout.contains("red\\u{1b}[31mwall"), "{stdout:?}");
+    assert!(!stdout.contains('\u{1b}'), "{stdout:?}");
+    let json = vis5d(&[
+        "query",
+        v5d.to_str().unwrap(),
+        "--pos",
+        "2,-1,1",
+        "--dir",
+        "0,1,0",
+        "--json",
+    ]);
+    let names: Vec<String> = serde_json::from_slice(&json.stdout).unwrap();
+    assert!(names.iter().any(|n| n == "red\u{1b}[31mwall"), "{names:?}");
+}
+
+/// With `--json` a closed pipe (`vis5d ... | head`) was an error while
+/// text mode exited 0; both exit 0 now. An unwritable stderr panicked.
+#[test]
+#[cfg(unix)]
+fn a_closed_stdout_is_success_and_a_closed_stderr_no_panic() {
+    use std::process::{Command, Stdio};
+    let dir = tempfile::tempdir().unwrap();
+    let v5d = dir.path().join("m.v5d");
+    assert!(
+        vis5d(&[
+            "build",
+            "scenes/machine.obj",
+            "--max-depth",
+            "4",
+            "-o",
+            v5d.to_str().unwrap()
+        ])
+        .status
+        .success()
+    );
+    // Enough views that the answers overflow any pipe buffer.
+    let one = r#"{"pos": [0.5, 0.4, 0.3], "dir": [1, 0.2, 0.1], "fov": 120}"#;
+    let views = dir.path().join("views.json");
+    std::fs::write(&views, format!("[{}]", vec![one; 20_000].join(","))).unwrap();
+    for json in [false, true] {
+        let mut args = vec![
+            "query",
+            v5d.to_str().unwrap(),
+            "--views",
+            views.to_str().unwrap(),
+        ];
+        if json {
+            args.push("--json");
+        }
+        let mut child = Command::new(env!("CARGO_BIN_EXE_vis5d"))
+            .args(&args)
+            .current_dir(crate::root())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take()); // the reader goes away at once
+        let out = child.wait_with_output().unwrap();
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "json {json}: {}",
+            text(&out.stderr)
+        );
+    }
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "{} info nope.obj 2>&-",
+            env!("CARGO_BIN_EXE_vis5d")
+        ))
+        .current_dir(crate::root())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "no panic (101)");
+}
