@@ -438,19 +438,47 @@ pub fn load_with(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Scene, SceneError> {
     let path = path.as_ref();
-    let format = SceneFormat::from_path(path).ok_or_else(|| SceneError::UnknownFormat {
-        path: path.to_owned(),
-        ext: path
-            .extension()
-            .map(|e| e.to_string_lossy().into_owned())
-            .unwrap_or_default(),
-    })?;
+    let format = format_of(path)?;
     let bytes = crate::input::read_regular(path, options.max_file_bytes).map_err(|cause| {
         SceneError::Io {
             path: path.to_owned(),
             cause,
         }
     })?;
+    parse(path, format, &bytes, options, progress)
+}
+
+/// Parses a scene file held in memory, its format chosen by `path`'s
+/// extension; `path` names it in messages and, for glTF, its folder is
+/// where buffer files are looked for (the fuzz targets use this).
+pub fn load_bytes(
+    path: impl AsRef<Path>,
+    bytes: &[u8],
+    options: &LoadOptions,
+) -> Result<Scene, SceneError> {
+    let path = path.as_ref();
+    let format = format_of(path)?;
+    parse(path, format, bytes, options, &mut |_, _| {})
+}
+
+/// The format `path`'s extension names.
+fn format_of(path: &Path) -> Result<SceneFormat, SceneError> {
+    SceneFormat::from_path(path).ok_or_else(|| SceneError::UnknownFormat {
+        path: path.to_owned(),
+        ext: path
+            .extension()
+            .map(|e| e.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+    })
+}
+
+fn parse(
+    path: &Path,
+    format: SceneFormat,
+    bytes: &[u8],
+    options: &LoadOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Scene, SceneError> {
     match format {
         SceneFormat::Obj => load_obj::load_obj(path, &bytes, progress),
         SceneFormat::Gltf | SceneFormat::Glb => load_gltf::load_gltf(path, &bytes, format, options),

@@ -460,3 +460,85 @@ fn a_closed_stdout_is_success_and_a_closed_stderr_no_panic() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2), "no panic (101)");
 }
+
+/// Any scene the loaders accept builds a tree that writes, decodes to the
+/// same tree and answers queries: random small scenes of every shape
+/// (flat, a single sliver, tiny, huge, far from the origin, with
+/// degenerate and duplicate triangles), written as OBJ and loaded back.
+#[test]
+fn any_accepted_scene_builds_a_tree_that_decodes() {
+    use glam::Vec3;
+    use rand::{RngExt, SeedableRng};
+    use rand_pcg::Pcg64;
+    use vis5d::builder::{BuildParams, build, to_file};
+    use vis5d::codec::{ReadLimits, read_file, write_file};
+    use vis5d::query::{Pvs, View};
+    use vis5d::random::{uniform_direction, uniform_point};
+    use vis5d::trace::Tracer;
+
+    let mut rng = Pcg64::seed_from_u64(2026);
+    let (mut accepted, mut refused, mut splits) = (0, 0, 0);
+    for case in 0..60 {
+        let scale = [1e-9f32, 1e-3, 1.0, 1e3, 1e9, 1e13][case % 6];
+        let offset = [0.0f32, 1e3, -1e5, 1e6][case / 6 % 4] * scale.min(1.0);
+        let flat = case % 5 == 0;
+        let b = vis5d::geom::Aabb::new(Vec3::splat(offset), Vec3::splat(offset + scale));
+        let mut obj = String::new();
+        let mut v = 0;
+        for o in 0..rng.random_range(1..6) {
+            obj += &format!("o obj{o}\n");
+            for _ in 0..rng.random_range(1..5) {
+                let a = uniform_point(&mut rng, &b);
+                let mut tri = [a, a + uniform_direction(&mut rng) * scale * 0.3, a];
+                tri[2] = match rng.random_range(0..4) {
+                    0 => tri[1],                 // degenerate: a repeated corner
+                    1 => a + (tri[1] - a) * 2.0, // degenerate: collinear
+                    _ => a + uniform_direction(&mut rng) * scale * 0.3,
+                };
+                if flat {
+                    for p in &mut tri {
+                        p.z = offset;
+                    }
+                }
+                for p in tri {
+                    obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
+                }
+                obj += &format!("f {} {} {}\n", v + 1, v + 2, v + 3);
+                v += 3;
+            }
+        }
+        let scene = match vis5d::scene::load_obj_bytes(format!("case{case}.obj"), obj.as_bytes()) {
+            Ok(s) => s,
+            Err(_) => {
+                refused += 1; // all degenerate, or a size f32 cannot resolve
+                continue;
+            }
+        };
+        accepted += 1;
+        let tracer = Tracer::new(&scene);
+        let params = BuildParams {
+            max_depth: 4,
+            cache_rays: 256,
+            min_visible_triangles: 0,
+            seed: case as u64,
+            ..BuildParams::default()
+        };
+        let (tree, _) = build(&scene, &tracer, &params, &|_| {})
+            .unwrap_or_else(|e| panic!("case {case} (scale {scale}, offset {offset}): {e}"));
+        tree.validate().unwrap();
+        splits += usize::from(tree.nodes().len() > 1);
+        let bytes = write_file(&to_file(&scene, tree.clone(), &params, None));
+        let back = read_file(&bytes, ReadLimits::default())
+            .unwrap_or_else(|e| panic!("case {case} (scale {scale}, offset {offset}): {e}"));
+        assert_eq!(back.tree, tree, "case {case}");
+        let pvs = Pvs::from_bytes(&bytes).unwrap();
+        let mut out = pvs.new_set();
+        pvs.query_view(
+            &View::square(scene.bounds().center(), Vec3::X, 90.0),
+            &mut out,
+        );
+    }
+    assert!(accepted >= 40, "{accepted} accepted, {refused} refused");
+    eprintln!("{accepted} accepted, {refused} refused, {splits} trees split");
+    assert!(splits >= accepted / 2, "{splits} of {accepted} trees split");
+}
