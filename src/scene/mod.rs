@@ -480,8 +480,8 @@ fn parse(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Scene, SceneError> {
     match format {
-        SceneFormat::Obj => load_obj::load_obj(path, &bytes, progress),
-        SceneFormat::Gltf | SceneFormat::Glb => load_gltf::load_gltf(path, &bytes, format, options),
+        SceneFormat::Obj => load_obj::load_obj(path, bytes, progress),
+        SceneFormat::Gltf | SceneFormat::Glb => load_gltf::load_gltf(path, bytes, format, options),
         SceneFormat::Procedural => unreachable!("no extension maps to Procedural"),
     }
 }
