@@ -311,6 +311,10 @@ fn flags_that_would_exhaust_the_machine_are_refused() {
             ],
             "--resolution would need",
         ),
+        (
+            vec!["info", m, "--max-memory", "64K"],
+            "loading scenes/machine.obj would need",
+        ),
     ] {
         let out = vis5d(&args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");
