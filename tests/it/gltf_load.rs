@@ -470,3 +470,11 @@ fn a_missing_position_accessor_is_an_error_not_a_panic() {
     let (_, msg) = load_err(doc, &bin);
     assert!(msg.contains("invalid glTF"), "{msg}");
 }
+
+/// One input per outcome of the glTF/GLB fuzz target's corpus
+/// (`fuzz/keep_outcomes.py`), each named after it: `ok.gltf` and `ok.glb`
+/// load, every other is refused; none panics.
+#[test]
+fn fuzz_corpus_loads_or_is_refused_without_panicking() {
+    crate::replay_scene_corpus("gltf");
+}

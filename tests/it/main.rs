@@ -47,3 +47,29 @@ pub fn vis5d(args: &[&str]) -> std::process::Output {
 pub fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
 }
+
+/// Replays `tests/scene_corpus/KIND/`: each file is loaded as the fuzz
+/// target loads it (from a folder that does not exist) and must load when
+/// its name starts with "ok", be refused otherwise, and never panic.
+pub fn replay_scene_corpus(kind: &str) {
+    let dir = root().join("tests/scene_corpus").join(kind);
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let bytes = std::fs::read(&path).unwrap();
+        let file = path.file_name().unwrap().to_string_lossy().into_owned();
+        let name = std::path::Path::new("/nonexistent").join(&file);
+        let loaded = vis5d::scene::load_bytes(&name, &bytes, &Default::default());
+        if let Ok(scene) = &loaded {
+            scene.validate().unwrap();
+        }
+        assert_eq!(
+            loaded.is_ok(),
+            file.starts_with("ok."),
+            "{file}: {:?}",
+            loaded.err()
+        );
+        n += 1;
+    }
+    assert!(n > 1, "no corpus in {}", dir.display());
+}

@@ -74,3 +74,11 @@ fn garbage_is_an_error_not_a_panic() {
         assert!(msg.starts_with(&p.display().to_string()), "{name}: {msg}");
     }
 }
+
+/// One input per outcome of the OBJ fuzz target's corpus
+/// (`fuzz/keep_outcomes.py`), each named after it: `ok.obj` loads, every
+/// other is refused; none panics.
+#[test]
+fn fuzz_corpus_loads_or_is_refused_without_panicking() {
+    crate::replay_scene_corpus("obj");
+}
