@@ -27,7 +27,7 @@ use glam::{DVec3, Vec3};
 use crate::bitset::ObjectSet;
 use crate::codec::{CodecError, Coding, FileObject, ReadLimits, read_file};
 use crate::geom::Aabb;
-use crate::geom::cell::{Cell, DIMS};
+use crate::geom::cell::{Cell, DIMS, grid_value};
 
 /// Why a `.v5d` file cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -328,14 +328,25 @@ impl Pvs {
 
     /// Decodes and checks a `.v5d` file held in memory.
     pub fn from_bytes(bytes: &[u8]) -> Result<Pvs, CodecError> {
-        let file = read_file(bytes, ReadLimits::default())?;
-        let tree = &file.tree;
+        // The decoded tree and the flat copy made of it below coexist for a
+        // while: each gets half of the documented budget, so that a
+        // crafted file cannot make a load cost twice the budget.
+        let budget = ReadLimits::default();
+        let limits = ReadLimits {
+            max_decoded_bytes: budget.max_decoded_bytes / 2,
+            ..budget
+        };
+        let file = read_file(bytes, limits)?;
+        let tree = file.tree;
+        let (root, grid_bits) = (tree.root_cell(), tree.grid_bits());
         let words = tree.object_count().div_ceil(64);
-        let mut nodes = Vec::with_capacity(tree.nodes().len());
-        let mut sets = Vec::with_capacity(tree.nodes().len() * words);
-        // Replay the cells in preorder to precompute split values.
-        let mut stack = vec![tree.root_cell()];
-        for node in tree.nodes() {
+        let tree_nodes = tree.into_nodes();
+        let mut nodes = Vec::with_capacity(tree_nodes.len());
+        let mut sets = Vec::with_capacity(tree_nodes.len() * words);
+        // Replay the cells in preorder to precompute split values; each
+        // node's set is freed once copied.
+        let mut stack = vec![root];
+        for node in tree_nodes {
             let cell = stack.pop().expect("preorder: one cell per node");
             sets.extend_from_slice(node.set.words());
             match node.split {
@@ -345,7 +356,8 @@ impl Pvs {
                     above: 0,
                 }),
                 Some(s) => {
-                    let value = tree.split_value(&cell, &s);
+                    let d = s.dim as usize;
+                    let value = grid_value(cell.lo[d], cell.hi[d], s.code, grid_bits);
                     let (below, above) = cell.split(s.dim as usize, value);
                     stack.push(above);
                     stack.push(below);
@@ -362,7 +374,7 @@ impl Pvs {
             fingerprint: file.fingerprint,
             params: file.params,
             objects: file.objects,
-            root: tree.root_cell(),
+            root,
             nodes,
             sets,
             words,

@@ -100,6 +100,12 @@ impl VisTree {
         }
     }
 
+    /// The tree's nodes, in preorder, given up (so that a caller can turn
+    /// their sets into another layout without holding both).
+    pub fn into_nodes(self) -> Vec<Node> {
+        self.nodes
+    }
+
     /// The root cell: the view box times all directions.
     pub fn root_cell(&self) -> Cell {
         self.root

@@ -297,6 +297,20 @@ fn damaged_files_are_refused_with_a_reason() {
         codec::read_file(&b, small).unwrap_err(),
         CodecError::TooLarge(_)
     ));
+    // A file whose tree decodes to 0.7 GiB: under the decoder's 1 GiB
+    // budget, but a loaded Pvs holds the tree and a flat copy at once, so
+    // it refuses more than half (a crafted 6 MB file decoded to 2 GB).
+    let mut b = patch(16, &(2 * 4_000_000u32 - 1).to_le_bytes());
+    b[20..24].copy_from_slice(&4_000_000u32.to_le_bytes());
+    let n = b.len() - 4;
+    let crc = codec::crc32(&b[..n]);
+    b[n..].copy_from_slice(&crc.to_le_bytes());
+    let e = codec::read_file(&b, ReadLimits::default()).unwrap_err();
+    assert!(!matches!(e, CodecError::TooLarge(_)), "{e}");
+    assert!(matches!(
+        Pvs::from_bytes(&b).unwrap_err(),
+        CodecError::TooLarge(_)
+    ));
 }
 
 #[test]
