@@ -12,13 +12,7 @@ use std::path::Path;
 /// Reads the regular file `path` whole, refusing anything else and any
 /// file above `limit` bytes (with an error saying which).
 pub fn read_regular(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
-    let meta = std::fs::metadata(path)?;
-    if !meta.is_file() {
-        return Err(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            "not a regular file (a folder, a device or a FIFO): vis5d reads only regular files",
-        ));
-    }
+    let meta = regular(path)?;
     if meta.len() > limit {
         return Err(too_large(meta.len(), limit));
     }
@@ -35,6 +29,22 @@ pub fn read_regular(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
 /// glTF buffer of `byteLength` bytes): the rest of the file, however
 /// large, is not read; a shorter file is an error.
 pub fn read_regular_prefix(path: &Path, len: u64) -> io::Result<Vec<u8>> {
+    let meta = regular(path)?;
+    if meta.len() < len {
+        return Err(too_short(meta.len(), len));
+    }
+    let mut bytes = Vec::with_capacity(len as usize);
+    std::fs::File::open(path)?
+        .take(len)
+        .read_to_end(&mut bytes)?;
+    if (bytes.len() as u64) < len {
+        return Err(too_short(bytes.len() as u64, len));
+    }
+    Ok(bytes)
+}
+
+/// The metadata of `path` (links followed), when it is a regular file.
+fn regular(path: &Path) -> io::Result<std::fs::Metadata> {
     let meta = std::fs::metadata(path)?;
     if !meta.is_file() {
         return Err(io::Error::new(
@@ -42,29 +52,14 @@ pub fn read_regular_prefix(path: &Path, len: u64) -> io::Result<Vec<u8>> {
             "not a regular file (a folder, a device or a FIFO): vis5d reads only regular files",
         ));
     }
-    if meta.len() < len {
-        return Err(io::Error::new(
-            io::ErrorKind::UnexpectedEof,
-            format!(
-                "it holds {} bytes, fewer than the {len} declared",
-                meta.len()
-            ),
-        ));
-    }
-    let mut bytes = Vec::with_capacity(len as usize);
-    std::fs::File::open(path)?
-        .take(len)
-        .read_to_end(&mut bytes)?;
-    if (bytes.len() as u64) < len {
-        return Err(io::Error::new(
-            io::ErrorKind::UnexpectedEof,
-            format!(
-                "it holds {} bytes, fewer than the {len} declared",
-                bytes.len()
-            ),
-        ));
-    }
-    Ok(bytes)
+    Ok(meta)
+}
+
+fn too_short(len: u64, declared: u64) -> io::Error {
+    io::Error::new(
+        io::ErrorKind::UnexpectedEof,
+        format!("it holds {len} bytes, fewer than the {declared} declared"),
+    )
 }
 
 fn too_large(len: u64, limit: u64) -> io::Error {

@@ -7,6 +7,15 @@ use std::path::Path;
 
 use crate::{text, vis5d};
 
+/// Asserts that a run was refused as a usage or runtime error (exit 2,
+/// no panic) with a message holding `want`.
+fn refused(out: &std::process::Output, want: &str) {
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains(want), "{want:?} not in {err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
 /// Writes `obj` to `dir/name` and returns the path as a string.
 fn write(dir: &Path, name: &str, contents: &str) -> String {
     let path = dir.join(name);
@@ -110,12 +119,7 @@ fn report_refuses_to_write_over_its_inputs() {
         &views,
         "--no-oracle",
     ]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(
-        text(&out.stderr).contains("refusing to write the report over the input"),
-        "{}",
-        text(&out.stderr)
-    );
+    refused(&out, "refusing to write the report over the input");
     assert!(std::fs::read_to_string(&views).unwrap().contains("pos"));
 }
 
@@ -338,12 +342,7 @@ fn flags_that_would_exhaust_the_machine_are_refused() {
         "--max-nodes",
         "3000",
     ]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(
-        text(&out.stderr).contains("more than 3000 nodes"),
-        "{}",
-        text(&out.stderr)
-    );
+    refused(&out, "more than 3000 nodes");
     // Negative values parse without `=` (and are then refused or used).
     let out = vis5d(&[
         "build",
