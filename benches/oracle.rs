@@ -1,8 +1,8 @@
 //! The extended-projection oracle (papers/001): time per view cell as the
 //! Depth Maps grow (64, 128, 256, 512 pixels on a side), on the CPU
 //! reference and on the GPU where an adapter exists (Mesa's lavapipe on a
-//! machine without one), on street cells of the committed city and on
-//! room cells of the office. Throughput is cells per second. Before each
+//! machine without one), on 8 street cells of the committed city (4 x 4 x
+//! 1 m) and 8 room cells of the office (2 x 2 x 1 m). Throughput is cells per second. Before each
 //! scene the bench prints the objects each rasteriser hides.
 //!
 //! Run: `cargo bench --bench oracle` (results in notes/oracle.md).
@@ -17,22 +17,36 @@ use vis5d::geom::Aabb;
 use vis5d::oracle::{Oracle, OracleParams, Rasteriser};
 use vis5d::random::uniform_point;
 use vis5d::scene::Scene;
+use vis5d::trace::{Ray, Tracer};
 
-/// Cells of `size` (metres, 2 m tall) with their floor on the scene's
-/// lowest level, centres uniform over the scene's footprint (seeded).
+/// `n` cells of `size` x `size` x 1 m standing 1 m above the floor, where
+/// a ray cast down from a random point of the scene lands first on an
+/// object named like "ground" or "floor" (street cells of the city, room
+/// cells of the office), seeded.
 fn cells(scene: &Scene, n: usize, size: f32) -> Vec<Aabb> {
+    let tracer = Tracer::new(scene);
     let b = scene.bounds();
-    let floor = Aabb::new(
-        Vec3::new(b.min.x, b.min.y, b.min.z + 0.2),
-        Vec3::new(b.max.x - size, b.max.y - size, b.min.z + 0.2),
-    );
     let mut rng = Pcg64::seed_from_u64(17);
-    (0..n)
-        .map(|_| {
-            let p = uniform_point(&mut rng, &floor);
-            Aabb::new(p, p + Vec3::new(size, size, 2.0))
-        })
-        .collect()
+    let mut out = Vec::new();
+    for _ in 0..1000 * n {
+        if out.len() == n {
+            break;
+        }
+        let p = uniform_point(&mut rng, &b);
+        let Some(hit) = tracer.closest_hit(&Ray::new(p, -Vec3::Z)) else {
+            continue;
+        };
+        let name = scene.objects()[hit.object as usize].name.to_lowercase();
+        if name.contains("ground") || name.contains("floor") {
+            let z = p.z - hit.t + 1.0;
+            out.push(Aabb::new(
+                Vec3::new(p.x, p.y, z),
+                Vec3::new(p.x + size, p.y + size, z + 1.0),
+            ));
+        }
+    }
+    assert_eq!(out.len(), n, "no floor to stand on");
+    out
 }
 
 fn bench_scene(c: &mut Criterion, name: &str, cell_size: f32) {
@@ -89,8 +103,8 @@ fn oracle(c: &mut Criterion) {
         // SAFETY: criterion has started no thread yet.
         unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
     }
-    bench_scene(c, "city", 6.0);
-    bench_scene(c, "office", 3.0);
+    bench_scene(c, "city", 4.0);
+    bench_scene(c, "office", 2.0);
 }
 
 criterion_group!(benches, oracle);
