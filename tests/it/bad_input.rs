@@ -166,19 +166,7 @@ fn special_files_as_inputs_are_refused_not_waited_on() {
     let zero = dir.path().join("zero.obj");
     std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
     let zero = zero.to_str().unwrap();
-    let good = dir.path().join("m.v5d");
-    assert!(
-        vis5d(&[
-            "build",
-            "scenes/machine.obj",
-            "--max-depth",
-            "2",
-            "-o",
-            good.to_str().unwrap()
-        ])
-        .status
-        .success()
-    );
+    let good = crate::machine_tree(dir.path(), 2);
     let good = good.to_str().unwrap();
     for args in [
         vec!["info", &obj],
@@ -378,27 +366,22 @@ fn names_with_control_characters_are_printed_escaped() {
             .success()
     );
     let v5d = dir.path().join("evil.v5d");
-    let out = vis5d(&[
-        "query",
-        v5d.to_str().unwrap(),
-        "--pos",
-        "2,-1,1",
-        "--dir",
-        "0,1,0",
-    ]);
-    let stdout = text(&out.stdout);
+    let query = |extra: &[&str]| {
+        let mut args = vec![
+            "query",
+            v5d.to_str().unwrap(),
+            "--pos",
+            "2,-1,1",
+            "--dir",
+            "0,1,0",
+        ];
+        args.extend_from_slice(extra);
+        vis5d(&args)
+    };
+    let stdout = text(&query(&[]).stdout);
     assert!(stdout.contains("red\\u{1b}[31mwall"), "{stdout:?}");
     assert!(!stdout.contains('\u{1b}'), "{stdout:?}");
-    let json = vis5d(&[
-        "query",
-        v5d.to_str().unwrap(),
-        "--pos",
-        "2,-1,1",
-        "--dir",
-        "0,1,0",
-        "--json",
-    ]);
-    let names: Vec<String> = serde_json::from_slice(&json.stdout).unwrap();
+    let names: Vec<String> = serde_json::from_slice(&query(&["--json"]).stdout).unwrap();
     assert!(names.iter().any(|n| n == "red\u{1b}[31mwall"), "{names:?}");
 }
 
@@ -409,19 +392,7 @@ fn names_with_control_characters_are_printed_escaped() {
 fn a_closed_stdout_is_success_and_a_closed_stderr_no_panic() {
     use std::process::{Command, Stdio};
     let dir = tempfile::tempdir().unwrap();
-    let v5d = dir.path().join("m.v5d");
-    assert!(
-        vis5d(&[
-            "build",
-            "scenes/machine.obj",
-            "--max-depth",
-            "4",
-            "-o",
-            v5d.to_str().unwrap()
-        ])
-        .status
-        .success()
-    );
+    let v5d = crate::machine_tree(dir.path(), 4);
     // Enough views that the answers overflow any pipe buffer.
     let one = r#"{"pos": [0.5, 0.4, 0.3], "dir": [1, 0.2, 0.1], "fov": 120}"#;
     let views = dir.path().join("views.json");

@@ -73,3 +73,20 @@ pub fn replay_scene_corpus(kind: &str) {
     }
     assert!(n > 1, "no corpus in {}", dir.display());
 }
+
+/// Builds the committed machine's tree to `dir/m.v5d` with `--max-depth
+/// depth` and returns its path.
+pub fn machine_tree(dir: &Path, depth: u32) -> PathBuf {
+    let v5d = dir.join("m.v5d");
+    let depth = depth.to_string();
+    let out = vis5d(&[
+        "build",
+        "scenes/machine.obj",
+        "--max-depth",
+        &depth,
+        "-o",
+        v5d.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    v5d
+}

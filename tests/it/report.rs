@@ -87,19 +87,7 @@ fn report_writes_consistent_figures() {
 #[test]
 fn report_takes_a_tree_and_a_camera_path_and_refuses_bad_input() {
     let dir = tempfile::tempdir().unwrap();
-    let v5d = dir.path().join("m.v5d");
-    assert!(
-        vis5d(&[
-            "build",
-            "scenes/machine.obj",
-            "--max-depth",
-            "5",
-            "-o",
-            v5d.to_str().unwrap()
-        ])
-        .status
-        .success()
-    );
+    let v5d = crate::machine_tree(dir.path(), 5);
     let views = dir.path().join("path.json");
     std::fs::write(
         &views,
