@@ -60,6 +60,12 @@
 //! # Ok::<(), vis5d::codec::CodecError>(())
 //! ```
 //!
+//! Positions are world coordinates. A scene far from the origin (a model
+//! in UTM coordinates) is built in a local frame whose origin the file
+//! keeps ([`Pvs::frame`](query::Pvs::frame)); an engine that already draws
+//! relative to an origin of its own passes local positions to
+//! [`query_view_local`](query::Pvs::query_view_local).
+//!
 //! ## Modules
 //!
 //! Each paper has its module, named for what it does:

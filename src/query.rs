@@ -18,6 +18,13 @@
 //! Conservative by construction where the tree is: positions outside the
 //! view box the tree was built for get every object (nothing was sampled
 //! there, so nothing may be culled).
+//!
+//! Positions are world coordinates. A tree built for a scene far from the
+//! origin is stored in the scene's local frame ([`crate::geom::Frame`]);
+//! [`Pvs::query_range`] and [`Pvs::query_view`] convert, rounding the box
+//! of positions outwards, and the `_local` forms take local coordinates
+//! (what a renderer that already draws relative to the frame's origin
+//! holds, and what vis5d's own tools use).
 
 use std::f32::consts::PI;
 use std::path::{Path, PathBuf};
@@ -26,8 +33,8 @@ use glam::{DVec3, Vec3};
 
 use crate::bitset::ObjectSet;
 use crate::codec::{CodecError, Coding, FileObject, ReadLimits, read_file};
-use crate::geom::Aabb;
 use crate::geom::cell::{Cell, DIMS, grid_value};
+use crate::geom::{Aabb, Frame};
 
 /// Why a `.v5d` file cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -302,6 +309,7 @@ fn cone_angles(f: DVec3, half: f64) -> AngularRanges {
 pub struct Pvs {
     coding: Coding,
     fingerprint: u64,
+    frame: Frame,
     params: String,
     objects: Vec<FileObject>,
     root: Cell,
@@ -372,6 +380,7 @@ impl Pvs {
         Ok(Pvs {
             coding: file.coding,
             fingerprint: file.fingerprint,
+            frame: file.frame,
             params: file.params,
             objects: file.objects,
             root,
@@ -419,7 +428,14 @@ impl Pvs {
         self.coding
     }
 
-    /// The root cell: the view box times all directions.
+    /// Where the tree's local coordinates sit in the world (the identity
+    /// for a scene built near the origin).
+    pub fn frame(&self) -> Frame {
+        self.frame
+    }
+
+    /// The root cell: the view box times all directions, in local
+    /// coordinates ([`Pvs::frame`]).
     pub fn root_cell(&self) -> Cell {
         self.root
     }
@@ -439,7 +455,7 @@ impl Pvs {
     }
 
     /// The set of the leaf holding the ray point `p` = (x, y, z, theta,
-    /// phi), as words of bits (bit i = object i).
+    /// phi), local coordinates, as words of bits (bit i = object i).
     pub fn leaf_set(&self, p: [f32; DIMS]) -> &[u64] {
         let mut i = 0;
         while self.nodes[i].dim != LEAF {
@@ -453,11 +469,26 @@ impl Pvs {
         self.set_words(i)
     }
 
-    /// The objects visible from some ray with origin in `positions` and
-    /// direction angles in `theta` x `phi` (closed ranges, radians; theta
-    /// may wrap: `theta.0 > theta.1` means `[theta.0, pi] u [-pi,
-    /// theta.1]`), written into `out` (cleared first).
+    /// The objects visible from some ray with origin in `positions`
+    /// (world coordinates) and direction angles in `theta` x `phi` (closed
+    /// ranges, radians; theta may wrap: `theta.0 > theta.1` means
+    /// `[theta.0, pi] u [-pi, theta.1]`), written into `out` (cleared
+    /// first).
     pub fn query_range(
+        &self,
+        positions: &Aabb,
+        theta: (f32, f32),
+        phi: (f32, f32),
+        out: &mut ObjectSet,
+    ) {
+        let local = self
+            .frame
+            .box_to_local(positions.min.as_dvec3(), positions.max.as_dvec3());
+        self.query_range_local(&local, theta, phi, out);
+    }
+
+    /// As [`Pvs::query_range`], with `positions` in local coordinates.
+    pub fn query_range_local(
         &self,
         positions: &Aabb,
         theta: (f32, f32),
@@ -473,17 +504,32 @@ impl Pvs {
         }
     }
 
-    /// The objects visible from `view`, written into `out` (cleared first).
+    /// The objects visible from `view` (its position in world
+    /// coordinates), written into `out` (cleared first).
     pub fn query_view(&self, view: &View, out: &mut ObjectSet) {
-        out.clear();
+        let p = view.position.as_dvec3();
+        let r = DVec3::splat(f64::from(view.radius.max(0.0)));
+        let positions = self.frame.box_to_local(p - r, p + r);
+        self.query_view_from(&positions, view, out);
+    }
+
+    /// As [`Pvs::query_view`], with `view`'s position in local
+    /// coordinates.
+    pub fn query_view_local(&self, view: &View, out: &mut ObjectSet) {
         let r = view.radius.max(0.0);
         let positions = Aabb::new(
             view.position - Vec3::splat(r),
             view.position + Vec3::splat(r),
         );
+        self.query_view_from(&positions, view, out);
+    }
+
+    /// The objects visible from the local `positions` in `view`'s frustum.
+    fn query_view_from(&self, positions: &Aabb, view: &View, out: &mut ObjectSet) {
+        out.clear();
         let ranges = frustum_angles(view.dir, view.up, view.fov_x, view.fov_y);
         for &(t0, t1, p0, p1) in ranges.boxes() {
-            self.accumulate(&positions, (t0, t1), (p0, p1), out);
+            self.accumulate(positions, (t0, t1), (p0, p1), out);
         }
     }
 

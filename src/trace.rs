@@ -123,7 +123,9 @@ fn exponent(x: f32) -> i32 {
 }
 
 /// The size that sets the scale of rounding errors in a scene: its diagonal
-/// plus its largest coordinate (a scene far from the origin rounds coarser).
+/// plus its largest coordinate (a scene far from the origin rounds coarser;
+/// scenes are held in a local frame, [`crate::geom::Frame`], so this is at
+/// most a few diagonals).
 fn rounding_scale(b: Aabb) -> f32 {
     b.diagonal() + b.min.abs().max(b.max.abs()).max_element()
 }

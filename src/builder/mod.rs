@@ -95,7 +95,9 @@ pub struct BuildParams {
     /// object and cell, after which the object is kept as visible
     /// undecided.
     pub rejection_budget: u32,
-    /// The positions to build for; `None` = the scene's bounding box.
+    /// The positions to build for, in the scene's local coordinates
+    /// ([`Scene::frame`]; the world's for a scene near the origin); `None`
+    /// = the scene's bounding box.
     pub view_box: Option<Aabb>,
     /// The view box is grown by this fraction of its diagonal on every
     /// side.
@@ -305,16 +307,19 @@ impl BuildParams {
 
 impl BuildParams {
     /// The parameters as `key=value` lines, as stored in `.v5d` files
-    /// (the view box is the root box actually used for `scene`).
+    /// (the view box is the root box actually used for `scene`, in world
+    /// coordinates).
     pub fn to_text(&self, scene: &Scene) -> String {
         let b = self.root_box(scene);
+        let frame = scene.frame();
         let p = &self.sprt;
         let lines = [
             format!("vis5d={}", env!("CARGO_PKG_VERSION")),
             format!("seed={}", self.seed),
             format!(
-                "view_box={},{},{},{},{},{}",
-                b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z
+                "view_box={},{}",
+                frame.world_text(b.min),
+                frame.world_text(b.max)
             ),
             format!("s_thresh={}", p.s_thresh),
             format!("accept={}", p.accept),
@@ -350,6 +355,7 @@ pub fn to_file(
     V5dFile {
         coding,
         fingerprint: scene.fingerprint(),
+        frame: scene.frame(),
         params: params.to_text(scene),
         objects: scene
             .objects()

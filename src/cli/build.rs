@@ -9,15 +9,14 @@ use clap::Args;
 use serde::Serialize;
 use vis5d::builder::{BuildError, BuildParams, BuildStats, PixelError, VerifyParams};
 use vis5d::codec::{self, Coding};
-use vis5d::geom::Aabb;
 use vis5d::scene::Scene;
 use vis5d::sprt::SprtParams;
 use vis5d::trace::Tracer;
 use vis5d::tree::TreeSummary;
 
 use crate::common::{
-    CodingSize, ShapeReport, check_output, coding_sizes, flag, load_scene, parse_box, parse_pair,
-    print_shape, progress_bar,
+    CodingSize, ShapeReport, World, WorldBox, check_output, coding_sizes, flag, load_scene,
+    parse_box, parse_pair, print_shape, progress_bar,
 };
 use crate::memory;
 
@@ -40,10 +39,10 @@ pub struct BuildArgs {
     /// Print the summary as JSON instead of text.
     #[arg(long)]
     json: bool,
-    /// The positions to build for, as x0,y0,z0,x1,y1,z1 [default: the
-    /// scene's bounding box].
+    /// The positions to build for, as x0,y0,z0,x1,y1,z1 in world
+    /// coordinates [default: the scene's bounding box].
     #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box, allow_hyphen_values = true)]
-    view_box: Option<Aabb>,
+    view_box: Option<WorldBox>,
     /// Grow the view box by this fraction of its diagonal on every side
     /// [0 to 100].
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
@@ -138,6 +137,8 @@ pub struct BuildArgs {
 }
 
 impl BuildArgs {
+    /// The parameters, all but the view box, which needs the scene's
+    /// frame ([`WorldBox::to_local`]).
     fn params(&self) -> BuildParams {
         BuildParams {
             sprt: SprtParams {
@@ -160,7 +161,7 @@ impl BuildArgs {
             angular_candidates: self.angular_candidates,
             grid_bits: self.grid_bits,
             rejection_budget: self.rejection_budget,
-            view_box: self.view_box,
+            view_box: None,
             view_grow: self.grow,
             seed: self.seed,
             max_nodes: self.max_nodes,
@@ -174,7 +175,9 @@ struct BuildReport {
     file: String,
     objects: usize,
     triangles: usize,
-    view_box: [[f32; 3]; 2],
+    view_box: [World; 2],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    frame_origin: Option<[f64; 3]>,
     threads: usize,
     seed: u64,
     #[serde(flatten)]
@@ -276,6 +279,12 @@ pub fn run(args: &BuildArgs) -> Result<()> {
         )?;
     }
     let (scene, load_seconds) = load_scene(&args.file)?;
+    if let Some(b) = args.view_box {
+        params.view_box = Some(b.to_local(&scene.frame()));
+        params
+            .validate()
+            .map_err(|e| anyhow::anyhow!("--view-box: {e} (in the scene's local frame)"))?;
+    }
     // The tree's nodes (a set of bits per object, and bookkeeping) within
     // the memory budget: the node budget is lowered to what it holds.
     let node_bytes = 2 * (scene.objects().len().div_ceil(64) as u64 * 8 + 64);
@@ -365,13 +374,15 @@ fn build_report(
     [load, bvh, verify_seconds]: [f64; 3],
 ) -> BuildReport {
     let b = params.root_box(scene);
+    let frame = scene.frame();
     let threads = rayon::current_num_threads();
     let d = stats.decisions;
     BuildReport {
         file: args.file.display().to_string(),
         objects: scene.objects().len(),
         triangles: scene.triangles().len(),
-        view_box: [b.min.to_array(), b.max.to_array()],
+        view_box: [World(frame, b.min), World(frame, b.max)],
+        frame_origin: (!frame.is_identity()).then(|| frame.origin.to_array()),
         threads,
         seed: params.seed,
         tree: s.into(),

@@ -11,7 +11,7 @@ use vis5d::geom::Aabb;
 use vis5d::oracle::{self, CheckParams, LeafCheck, Oracle, Suspect};
 use vis5d::trace::Tracer;
 
-use crate::common::{load_scene, progress_bar, read_v5d};
+use crate::common::{World, load_scene, progress_bar, read_v5d};
 use crate::memory;
 use crate::oracle::{GpuWarning, OracleFlags};
 
@@ -59,7 +59,8 @@ pub struct CheckArgs {
 struct ViolationJson<'a> {
     object: u32,
     name: &'a str,
-    ray_origin: [f32; 3],
+    /// World coordinates.
+    ray_origin: World,
     ray_dir: [f32; 3],
 }
 
@@ -76,6 +77,8 @@ struct SuspectJson<'a> {
 #[derive(Serialize)]
 struct LeafJson<'a> {
     node: usize,
+    /// (x, y, z, theta, phi), x, y and z in the scene's local frame
+    /// (world = local + `frame_origin`).
     cell: [[f32; 5]; 2],
     oracle_all_directions: usize,
     oracle: usize,
@@ -90,6 +93,8 @@ struct LeafJson<'a> {
 struct CheckJson<'a> {
     model: String,
     pvs: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    frame_origin: Option<[f64; 3]>,
     objects: usize,
     tree_leaves: usize,
     leaves_checked: usize,
@@ -119,6 +124,7 @@ pub fn run(args: &CheckArgs) -> Result<Outcome> {
         "cast fewer rays per leaf",
     )?;
     let (scene, _) = load_scene(&args.model)?;
+    let frame = scene.frame();
     let (_, file) = read_v5d(&args.pvs)?;
     if file.fingerprint != scene.fingerprint() {
         anyhow::bail!(
@@ -166,6 +172,7 @@ pub fn run(args: &CheckArgs) -> Result<Outcome> {
     let suspects: Vec<&Suspect> = report.leaves.iter().flat_map(|l| &l.suspects).collect();
     let json = CheckJson {
         model: args.model.display().to_string(),
+        frame_origin: (!frame.is_identity()).then(|| frame.origin.to_array()),
         pvs: args.pvs.display().to_string(),
         objects: scene.objects().len(),
         tree_leaves: report.tree_leaves,
@@ -205,7 +212,7 @@ pub fn run(args: &CheckArgs) -> Result<Outcome> {
                     .map(|v| ViolationJson {
                         object: v.object,
                         name: name(v.object),
-                        ray_origin: v.ray.origin.to_array(),
+                        ray_origin: World(frame, v.ray.origin),
                         ray_dir: v.ray.dir.to_array(),
                     })
                     .collect(),
@@ -238,10 +245,10 @@ pub fn run(args: &CheckArgs) -> Result<Outcome> {
             .take(20)
             .map(|(l, v)| {
                 format!(
-                    "{} (leaf {}, ray from {:?} along {:?})",
+                    "{} (leaf {}, ray from {} along {:?})",
                     crate::common::printable(name(v.object)),
                     l.node,
-                    v.ray.origin.to_array(),
+                    World(frame, v.ray.origin),
                     v.ray.dir.to_array()
                 )
             })

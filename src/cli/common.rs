@@ -8,11 +8,11 @@ use std::sync::OnceLock;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use vis5d::codec::{self, Coding, code_size};
-use vis5d::geom::Aabb;
+use vis5d::geom::{Aabb, Frame};
 use vis5d::query::View;
 use vis5d::scene::{self, LoadOptions, Scene};
 use vis5d::tree::{TreeSummary, VisTree};
@@ -80,23 +80,62 @@ pub fn check_output(output: &Path, what: &str, inputs: &[&Path]) -> Result<()> {
     Ok(())
 }
 
-/// Parses `x0,y0,z0,x1,y1,z1`.
-pub fn parse_box(s: &str) -> Result<Aabb, String> {
-    let v: Vec<f32> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f32>().map_err(|e| format!("{x:?}: {e}")))
-        .collect::<Result<_, _>>()?;
+/// A box of positions in world coordinates, as typed on the command line:
+/// parsed in f64, so that a georeferenced position keeps its precision
+/// until it meets the scene's frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorldBox {
+    /// The smallest corner.
+    pub min: DVec3,
+    /// The largest corner.
+    pub max: DVec3,
+}
+
+impl WorldBox {
+    /// The box in `frame`'s local coordinates, rounded outwards.
+    pub fn to_local(self, frame: &Frame) -> Aabb {
+        frame.box_to_local(self.min, self.max)
+    }
+
+    /// The centre point.
+    pub fn center(&self) -> DVec3 {
+        (self.min + self.max) * 0.5
+    }
+}
+
+/// Parses `x0,y0,z0,x1,y1,z1` (world coordinates).
+pub fn parse_box(s: &str) -> Result<WorldBox, String> {
+    let v = parse_numbers(s)?;
     if v.len() != 6 {
         return Err(format!(
             "expected 6 numbers x0,y0,z0,x1,y1,z1, got {}",
             v.len()
         ));
     }
-    let b = Aabb::new(Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]));
+    let b = WorldBox {
+        min: DVec3::new(v[0], v[1], v[2]),
+        max: DVec3::new(v[3], v[4], v[5]),
+    };
     if !(b.min.is_finite() && b.max.is_finite() && b.min.cmplt(b.max).all()) {
         return Err("the box needs finite corners with x0 < x1, y0 < y1, z0 < z1".into());
     }
     Ok(b)
+}
+
+/// Comma-separated numbers, parsed in f64.
+fn parse_numbers(s: &str) -> Result<Vec<f64>, String> {
+    s.split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("{x:?}: {e}")))
+        .collect()
+}
+
+/// Parses a point `x,y,z` (world coordinates, f64).
+pub fn parse_point(s: &str) -> Result<DVec3, String> {
+    match parse_numbers(s)?[..] {
+        [x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => Ok(DVec3::new(x, y, z)),
+        [_, _, _] => Err("the coordinates must be finite".into()),
+        ref v => Err(format!("expected 3 numbers x,y,z, got {}", v.len())),
+    }
 }
 
 /// Parses `a,b`.
@@ -106,17 +145,14 @@ pub fn parse_pair(s: &str) -> Result<(f64, f64), String> {
     Ok((p(a)?, p(b)?))
 }
 
-/// Parses `x,y,z`.
+/// Parses a direction `x,y,z` (f32: directions need no frame).
 pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
-    let v: Vec<f32> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f32>().map_err(|e| format!("{x:?}: {e}")))
-        .collect::<Result<_, _>>()?;
-    match v[..] {
-        [x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => Ok(Vec3::new(x, y, z)),
-        [_, _, _] => Err("the coordinates must be finite".into()),
-        _ => Err(format!("expected 3 numbers x,y,z, got {}", v.len())),
+    let p = parse_point(s)?;
+    let v = p.as_vec3();
+    if !v.is_finite() {
+        return Err("the coordinates must be finite in f32".into());
     }
+    Ok(v)
 }
 
 /// Loads a scene with a progress bar on a terminal.
@@ -182,7 +218,7 @@ pub fn set_load_options(options: LoadOptions) {
 #[derive(serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ViewSpec {
-    pos: [f32; 3],
+    pos: [f64; 3],
     dir: [f32; 3],
     #[serde(default = "default_fov")]
     fov: f32,
@@ -192,10 +228,47 @@ fn default_fov() -> f32 {
     90.0
 }
 
+/// A view whose eye is in world coordinates (f64, as read), to be put in
+/// a scene's or a tree's frame before it is used.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorldView {
+    /// The eye, world coordinates.
+    pub position: DVec3,
+    /// The rest of the view (its `position` is the eye in f32, for
+    /// nothing but messages).
+    pub view: View,
+}
+
+impl WorldView {
+    /// A square view from `position` (see [`View::square`]).
+    pub fn square(position: DVec3, dir: Vec3, fov_degrees: f32) -> Self {
+        Self {
+            position,
+            view: View::square(position.as_vec3(), dir, fov_degrees),
+        }
+    }
+
+    /// The view in `frame`'s local coordinates (the eye at the nearest
+    /// local point).
+    pub fn local(&self, frame: &Frame) -> View {
+        View {
+            position: frame.to_local(self.position),
+            ..self.view
+        }
+    }
+
+    /// The box of eye positions (the eye and its radius) in `frame`'s
+    /// local coordinates, rounded outwards.
+    pub fn positions(&self, frame: &Frame) -> Aabb {
+        let r = DVec3::splat(f64::from(self.view.radius.max(0.0)));
+        frame.box_to_local(self.position - r, self.position + r)
+    }
+}
+
 /// Reads a views file: a JSON list of `{"pos": [x,y,z], "dir": [x,y,z],
 /// "fov": degrees}` (square field of view, up = +z unless `dir` is
-/// vertical).
-pub fn read_views(path: &Path) -> Result<Vec<View>> {
+/// vertical), positions in world coordinates.
+pub fn read_views(path: &Path) -> Result<Vec<WorldView>> {
     let bytes = vis5d::input::read_regular(path, MAX_VIEWS_BYTES)
         .with_context(|| format!("{}: cannot read the views", path.display()))?;
     let text = String::from_utf8(bytes)
@@ -210,7 +283,7 @@ pub fn read_views(path: &Path) -> Result<Vec<View>> {
         .iter()
         .enumerate()
         .map(|(i, v)| {
-            let (pos, dir) = (Vec3::from_array(v.pos), Vec3::from_array(v.dir));
+            let (pos, dir) = (DVec3::from_array(v.pos), Vec3::from_array(v.dir));
             let ok = pos.is_finite()
                 && dir.is_finite()
                 && dir != Vec3::ZERO
@@ -222,7 +295,7 @@ pub fn read_views(path: &Path) -> Result<Vec<View>> {
                     path.display()
                 );
             }
-            Ok(View::square(pos, dir, v.fov))
+            Ok(WorldView::square(pos, dir, v.fov))
         })
         .collect()
 }
@@ -243,8 +316,27 @@ pub fn progress_bar(what: &str, len: u64) -> ProgressBar {
     bar
 }
 
-pub fn fmt_vec(v: [f32; 3]) -> String {
-    format!("({}, {}, {})", v[0], v[1], v[2])
+/// A local point shown in world coordinates: the f32 values as they are
+/// for the identity frame, the f64 world values otherwise (as
+/// [`Frame::world_text`]); `(x, y, z)` as text, `[x, y, z]` in JSON.
+#[derive(Clone, Copy, Debug)]
+pub struct World(pub Frame, pub Vec3);
+
+impl std::fmt::Display for World {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let text = self.0.world_text(self.1).replace(',', ", ");
+        write!(f, "({text})")
+    }
+}
+
+impl Serialize for World {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        if self.0.is_identity() {
+            self.1.to_array().serialize(s)
+        } else {
+            self.0.to_world(self.1).to_array().serialize(s)
+        }
+    }
 }
 
 /// A tree's shape and set sizes, as `build` and `stat` report them.
@@ -278,15 +370,14 @@ impl From<TreeSummary> for ShapeReport {
 /// Prints the view box and the tree's shape, for `build` and `stat`.
 pub fn print_shape(
     out: &mut impl Write,
-    [min, max]: [[f32; 3]; 2],
+    [min, max]: [World; 2],
     t: &ShapeReport,
 ) -> io::Result<()> {
-    writeln!(
-        out,
-        "  view box         {} .. {}",
-        fmt_vec(min),
-        fmt_vec(max)
-    )?;
+    writeln!(out, "  view box         {min} .. {max}")?;
+    if !min.0.is_identity() {
+        let o = min.0.origin;
+        writeln!(out, "  frame origin     ({}, {}, {})", o.x, o.y, o.z)?;
+    }
     writeln!(
         out,
         "  tree             {} nodes, {} leaves, depth {}",

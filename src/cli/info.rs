@@ -7,7 +7,7 @@ use anyhow::Result;
 use clap::Args;
 use serde::Serialize;
 
-use crate::common::{fmt_vec, load_scene};
+use crate::common::{World, load_scene};
 
 #[derive(Args, Debug)]
 pub struct InfoArgs {
@@ -28,7 +28,7 @@ struct ObjectInfo<'a> {
     name: &'a str,
     triangles: usize,
     area: f64,
-    bounds: [[f32; 3]; 2],
+    bounds: [World; 2],
 }
 
 /// The summary printed by `info`.
@@ -38,7 +38,12 @@ struct SceneInfo<'a> {
     format: String,
     objects: usize,
     triangles: usize,
-    bounds: [[f32; 3]; 2],
+    /// World coordinates.
+    bounds: [World; 2],
+    /// Where the scene's local frame sits (absent for the identity).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    frame_origin: Option<[f64; 3]>,
+    size: [f32; 3],
     surface_area: f64,
     load_seconds: f64,
     dropped_degenerate_triangles: usize,
@@ -58,13 +63,16 @@ struct DuplicateName<'a> {
 pub fn run(args: &InfoArgs) -> Result<()> {
     let (scene, seconds) = load_scene(&args.file)?;
     let b = scene.bounds();
+    let frame = scene.frame();
     let report = scene.report();
     let summary = SceneInfo {
         file: args.file.display().to_string(),
         format: scene.format().to_string(),
         objects: scene.objects().len(),
         triangles: scene.triangles().len(),
-        bounds: [b.min.to_array(), b.max.to_array()],
+        bounds: [World(frame, b.min), World(frame, b.max)],
+        frame_origin: (!frame.is_identity()).then(|| frame.origin.to_array()),
+        size: b.size().to_array(),
         surface_area: scene.objects().iter().map(|o| o.area).sum(),
         load_seconds: seconds,
         dropped_degenerate_triangles: report.dropped_degenerate,
@@ -87,7 +95,7 @@ pub fn run(args: &InfoArgs) -> Result<()> {
                 name: &o.name,
                 triangles: o.triangle_count(),
                 area: o.area,
-                bounds: [o.bounds.min.to_array(), o.bounds.max.to_array()],
+                bounds: [World(frame, o.bounds.min), World(frame, o.bounds.max)],
             })
             .collect(),
     };
@@ -103,16 +111,17 @@ pub fn run(args: &InfoArgs) -> Result<()> {
 
 fn print_info(out: &mut impl Write, s: &SceneInfo, all_objects: bool) -> io::Result<()> {
     let [min, max] = s.bounds;
-    let size = [max[0] - min[0], max[1] - min[1], max[2] - min[2]];
+    let size = s.size;
     writeln!(out, "{} ({})", s.file, s.format)?;
     writeln!(out, "  objects          {}", s.objects)?;
     writeln!(out, "  triangles        {}", s.triangles)?;
-    writeln!(
-        out,
-        "  bounds           {} .. {}",
-        fmt_vec(min),
-        fmt_vec(max)
-    )?;
+    writeln!(out, "  bounds           {min} .. {max}")?;
+    if let Some([x, y, z]) = s.frame_origin {
+        writeln!(
+            out,
+            "  frame origin     ({x}, {y}, {z}): far from the origin, the scene is held relative to it"
+        )?;
+    }
     writeln!(
         out,
         "  size             {} x {} x {}",

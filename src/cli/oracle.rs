@@ -8,10 +8,9 @@ use std::time::Instant;
 use anyhow::{Result, anyhow};
 use clap::Args;
 use serde::Serialize;
-use vis5d::geom::Aabb;
 use vis5d::oracle::{CellReport, Oracle, OracleError, OracleParams, Rasteriser};
 
-use crate::common::{flag, load_scene, parse_box, printable};
+use crate::common::{WorldBox, flag, load_scene, parse_box, printable};
 
 /// Settings shared by `oracle` and `check`.
 #[derive(Args, Debug, Clone)]
@@ -104,9 +103,10 @@ impl GpuWarning {
 pub struct OracleArgs {
     /// The scene file (.obj, .gltf or .glb).
     file: PathBuf,
-    /// The view cell: a box of viewpoints, x0,y0,z0,x1,y1,z1.
+    /// The view cell: a box of viewpoints, x0,y0,z0,x1,y1,z1 (world
+    /// coordinates).
     #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box, allow_hyphen_values = true)]
-    cell: Aabb,
+    cell: WorldBox,
     #[command(flatten)]
     flags: OracleFlags,
     /// Print as JSON: the objects, the planes and the timings.
@@ -127,7 +127,8 @@ struct PlaneJson {
 #[derive(Serialize)]
 struct OracleJson<'a> {
     scene: String,
-    cell: [[f32; 3]; 2],
+    /// World coordinates, as given.
+    cell: [[f64; 3]; 2],
     objects: usize,
     occluders: usize,
     potentially_visible: Vec<&'a str>,
@@ -157,7 +158,8 @@ pub fn run(args: &OracleArgs) -> Result<()> {
     let start = Instant::now();
     let oracle = Oracle::new(&scene, params, rasteriser)?;
     let prepare = start.elapsed().as_secs_f64();
-    let report: CellReport = oracle.cell(&args.cell, None);
+    let frame = scene.frame();
+    let report: CellReport = oracle.cell(&args.cell.to_local(&frame), None);
     GpuWarning::default().finish(oracle.rasteriser());
     let names: Vec<&str> = report
         .visible
@@ -180,7 +182,14 @@ pub fn run(args: &OracleArgs) -> Result<()> {
             .iter()
             .map(|p| PlaneJson {
                 face: p.face,
-                position: p.position,
+                // World coordinates: the frame's origin along the face's
+                // axis added.
+                position: p.position
+                    + match p.face.as_bytes().get(1) {
+                        Some(b'x') => frame.origin.x,
+                        Some(b'y') => frame.origin.y,
+                        _ => frame.origin.z,
+                    },
                 occluders: p.occluders,
                 slices: p.slices,
                 filled_pixels: p.filled,

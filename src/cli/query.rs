@@ -5,22 +5,24 @@ use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 use clap::Args;
-use glam::Vec3;
-use vis5d::geom::Aabb;
-use vis5d::query::{Pvs, View};
+use glam::{DVec3, Vec3};
+use vis5d::query::Pvs;
 
-use crate::common::{load_scene, parse_box, parse_vec3, printable, read_views};
+use crate::common::{
+    WorldBox, WorldView, load_scene, parse_box, parse_point, parse_vec3, printable, read_views,
+};
 
 #[derive(Args, Debug)]
 pub struct QueryArgs {
     /// The .v5d file.
     file: PathBuf,
-    /// The eye position, x,y,z.
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true, required_unless_present_any = ["views", "box"])]
-    pos: Option<Vec3>,
-    /// A box of eye positions instead of a point, x0,y0,z0,x1,y1,z1.
+    /// The eye position, x,y,z (world coordinates).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true, required_unless_present_any = ["views", "box"])]
+    pos: Option<DVec3>,
+    /// A box of eye positions instead of a point, x0,y0,z0,x1,y1,z1 (world
+    /// coordinates).
     #[arg(id = "box", long = "box", value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box, allow_hyphen_values = true, conflicts_with = "pos")]
-    positions: Option<Aabb>,
+    positions: Option<WorldBox>,
     /// The viewing direction, x,y,z.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true, required_unless_present = "views")]
     dir: Option<Vec3>,
@@ -48,7 +50,7 @@ pub struct QueryArgs {
 pub fn run(args: &QueryArgs) -> Result<()> {
     // The views first (flags and file): bad ones are refused before the
     // tree is read.
-    let views: Vec<View> = match &args.views {
+    let views: Vec<WorldView> = match &args.views {
         Some(path) => read_views(path)?,
         None => {
             let dir = args.dir.expect("clap requires --dir without --views");
@@ -58,16 +60,15 @@ pub fn run(args: &QueryArgs) -> Result<()> {
             if !(args.fov > 0.0 && args.fov < 180.0) {
                 bail!("--fov must be between 0 and 180 degrees");
             }
-            let (pos, radius) = match (args.pos, args.positions) {
-                (_, Some(b)) => (b.center(), 0.0),
-                (Some(p), None) => (p, 0.0),
+            let pos = match (args.pos, args.positions) {
+                (_, Some(b)) => b.center(),
+                (Some(p), None) => p,
                 (None, None) => unreachable!("clap requires --pos or --box"),
             };
-            let mut v = View::square(pos, dir, args.fov);
+            let mut v = WorldView::square(pos, dir, args.fov);
             if let Some(up) = args.up {
-                v.up = up;
+                v.view.up = up;
             }
-            v.radius = radius;
             vec![v]
         }
     };
@@ -86,19 +87,21 @@ pub fn run(args: &QueryArgs) -> Result<()> {
     if args.json && many {
         write!(out, "[")?;
     }
+    // Positions meet the tree's frame in f64, rounded outwards.
+    let frame = pvs.frame();
     for (i, v) in views.iter().enumerate() {
-        match args.positions {
-            Some(b) => {
-                let r = vis5d::query::frustum_angles(v.dir, v.up, v.fov_x, v.fov_y);
-                acc.clear();
-                for &(t0, t1, p0, p1) in r.boxes() {
-                    pvs.query_range(&b, (t0, t1), (p0, p1), &mut set);
-                    acc.union_with(&set);
-                }
-                std::mem::swap(&mut set, &mut acc);
-            }
-            None => pvs.query_view(v, &mut set),
+        let positions = match args.positions {
+            Some(b) => b.to_local(&frame),
+            None => v.positions(&frame),
+        };
+        let v = &v.view;
+        let r = vis5d::query::frustum_angles(v.dir, v.up, v.fov_x, v.fov_y);
+        acc.clear();
+        for &(t0, t1, p0, p1) in r.boxes() {
+            pvs.query_range_local(&positions, (t0, t1), (p0, p1), &mut set);
+            acc.union_with(&set);
         }
+        std::mem::swap(&mut set, &mut acc);
         let names: Vec<&str> = set.iter().map(|o| pvs.objects()[o].name.as_str()).collect();
         if args.json {
             if many && i > 0 {

@@ -156,7 +156,9 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     };
     let pvs = Pvs::from_bytes(&codec::write_file(&file)).context("the tree")?;
     let views: Vec<View> = match path_views {
-        Some(views) => views,
+        // The camera path is in world coordinates; the report works in the
+        // scene's local frame.
+        Some(views) => views.iter().map(|v| v.local(&scene.frame())).collect(),
         None => random_views(
             &pvs.root_cell().space(),
             args.random as usize,

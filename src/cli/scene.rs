@@ -5,9 +5,10 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use glam::DVec3;
 use vis5d::scene;
 
-use crate::common::check_output;
+use crate::common::{check_output, parse_point};
 use crate::memory;
 
 /// Memory per generated triangle: its corners, area table entry and
@@ -30,6 +31,11 @@ pub struct SceneArgs {
     /// of the apartment is the apartment block of papers/003 sec. 8.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     replicate: u32,
+    /// Move the scene by x,y,z (world units): put it where a georeferenced
+    /// model would be (UTM coordinates are near 500000,5000000,0), to try
+    /// vis5d far from the origin.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true)]
+    offset: Option<DVec3>,
 }
 
 /// Runs `vis5d scene`.
@@ -48,11 +54,20 @@ pub fn run(args: &SceneArgs) -> Result<()> {
         "make fewer copies",
     )?;
     let start = Instant::now();
-    let s = procedural::generate(args.kind, args.seed, args.replicate);
+    let mut s = procedural::generate(args.kind, args.seed, args.replicate);
+    if let Some(offset) = args.offset {
+        s = s.translated(offset, &args.output)?;
+    }
     let header = vec![
         format!(
-            "vis5d procedural scene: {} --seed {} --replicate {}",
-            args.kind, args.seed, args.replicate
+            "vis5d procedural scene: {} --seed {} --replicate {}{}",
+            args.kind,
+            args.seed,
+            args.replicate,
+            args.offset.map_or(String::new(), |o| format!(
+                " --offset {},{},{}",
+                o.x, o.y, o.z
+            ))
         ),
         format!(
             "{} objects, {} triangles; units metres, z up",

@@ -6,10 +6,12 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
+use glam::Vec3;
 use serde::Serialize;
-use vis5d::codec;
 
-use crate::common::{CodingSize, ShapeReport, coding_sizes, print_shape, printable, read_v5d};
+use crate::common::{
+    CodingSize, ShapeReport, World, coding_sizes, print_shape, printable, read_v5d,
+};
 
 #[derive(Args, Debug)]
 pub struct StatArgs {
@@ -30,7 +32,9 @@ struct StatReport {
     grid_bits: u32,
     objects: usize,
     fingerprint: String,
+    /// In the tree's local coordinates: world = local + `frame_origin`.
     root_cell: [[f32; 5]; 2],
+    frame_origin: [f64; 3],
     params: Vec<(String, String)>,
     #[serde(flatten)]
     tree: ShapeReport,
@@ -47,12 +51,13 @@ pub fn run(args: &StatArgs) -> Result<()> {
     let report = StatReport {
         file: args.file.display().to_string(),
         file_bytes: bytes.len(),
-        version: codec::VERSION,
+        version: u16::from_le_bytes([bytes[8], bytes[9]]),
         coding: file.coding.name().to_owned(),
         grid_bits: tree.grid_bits(),
         objects: file.objects.len(),
         fingerprint: format!("{:016x}", file.fingerprint),
         root_cell: [root.lo, root.hi],
+        frame_origin: file.frame.origin.to_array(),
         params: file
             .params
             .lines()
@@ -82,8 +87,8 @@ pub fn run(args: &StatArgs) -> Result<()> {
     writeln!(out, "  objects          {}", r.objects)?;
     writeln!(out, "  scene            fingerprint {}", r.fingerprint)?;
     let space = [
-        [root.lo[0], root.lo[1], root.lo[2]],
-        [root.hi[0], root.hi[1], root.hi[2]],
+        World(file.frame, Vec3::new(root.lo[0], root.lo[1], root.lo[2])),
+        World(file.frame, Vec3::new(root.hi[0], root.hi[1], root.hi[2])),
     ];
     print_shape(&mut out, space, &r.tree)?;
     writeln!(out, "  coded tree size  structure bits + set bits = bytes")?;

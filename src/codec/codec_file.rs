@@ -8,10 +8,11 @@
 //! against the decode budget ([`ReadLimits`]), before anything is
 //! allocated.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use super::CodecError;
 use super::codec_tree::{Coding, DecodeLimits, decode, encode};
+use crate::geom::Frame;
 use crate::geom::cell::{Cell, DIMS};
 use crate::tree::VisTree;
 
@@ -20,15 +21,21 @@ use crate::tree::VisTree;
 /// transfers).
 pub const MAGIC: [u8; 8] = [0x89, b'V', b'5', b'D', b'\r', b'\n', 0x1a, b'\n'];
 
-/// The format version this code writes and reads.
-pub const VERSION: u16 = 1;
+/// The format version this code writes. It reads this one and version 1
+/// (which has no frame origin: its trees are in world coordinates).
+pub const VERSION: u16 = 2;
 
-/// The size of the fixed header, before the parameters.
-const FIXED: usize = 8 + 2 + 1 + 1 + 4 + 4 + 4 + 8 + 4 * 2 * DIMS + 4;
+/// The size of the fixed header of a file of `version`, before the
+/// parameters: version 2 added the frame origin, three f64.
+const fn fixed_len(version: u16) -> usize {
+    let v1 = 8 + 2 + 1 + 1 + 4 + 4 + 4 + 8 + 4 * 2 * DIMS + 4;
+    if version >= 2 { v1 + 3 * 8 } else { v1 }
+}
 
-/// The smallest possible file: the fixed header, empty parameters, no
-/// objects, the bit length, no tree bytes, the checksum.
-pub const MIN_FILE_LEN: usize = FIXED + 8 + 4;
+/// The smallest possible file of the version written: the fixed header,
+/// empty parameters, no objects, the bit length, no tree bytes, the
+/// checksum. (A version 1 file may be 24 bytes shorter.)
+pub const MIN_FILE_LEN: usize = fixed_len(VERSION) + 8 + 4;
 
 /// One object of the file's object table.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -47,6 +54,9 @@ pub struct V5dFile {
     /// The fingerprint of the scene geometry the tree was built for
     /// ([`geometry_fingerprint`]).
     pub fingerprint: u64,
+    /// Where the tree's local coordinates sit in the world (the identity
+    /// for a version 1 file).
+    pub frame: Frame,
     /// The build parameters, as `key=value` lines.
     pub params: String,
     /// The objects, in scene order.
@@ -78,10 +88,14 @@ impl Default for ReadLimits {
 }
 
 /// The 64-bit FNV-1a hash of a scene's geometry: the number of objects,
-/// each object's triangle count and the bits of every coordinate, in
-/// order. Names are not included: renaming an object does not change what
-/// is visible.
-pub fn geometry_fingerprint<'a>(objects: impl IntoIterator<Item = &'a [[Vec3; 3]]>) -> u64 {
+/// each object's triangle count and the bits of every (local) coordinate,
+/// in order, then the frame's origin when it is not zero (so a scene near
+/// the origin hashes as it did before frames existed). Names are not
+/// included: renaming an object does not change what is visible.
+pub fn geometry_fingerprint<'a>(
+    objects: impl IntoIterator<Item = &'a [[Vec3; 3]]>,
+    frame: &Frame,
+) -> u64 {
     const PRIME: u64 = 0x0000_0100_0000_01b3;
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     let mut eat = |bytes: &[u8]| {
@@ -104,6 +118,12 @@ pub fn geometry_fingerprint<'a>(objects: impl IntoIterator<Item = &'a [[Vec3; 3]
         }
     }
     eat(&count.to_le_bytes());
+    if !frame.is_identity() {
+        eat(b"origin");
+        for c in frame.origin.to_array() {
+            eat(&c.to_bits().to_le_bytes());
+        }
+    }
     h
 }
 
@@ -151,6 +171,9 @@ pub fn write_file(file: &V5dFile) -> Vec<u8> {
     let root = tree.root_cell();
     for v in root.lo.iter().chain(&root.hi) {
         out.extend_from_slice(&v.to_le_bytes());
+    }
+    for c in file.frame.origin.to_array() {
+        out.extend_from_slice(&c.to_le_bytes());
     }
     out.extend_from_slice(&(file.params.len() as u32).to_le_bytes());
     out.extend_from_slice(file.params.as_bytes());
@@ -215,6 +238,12 @@ impl<'a> Cursor<'a> {
         ))
     }
 
+    fn f64(&mut self, what: &str) -> Result<f64, CodecError> {
+        Ok(f64::from_le_bytes(
+            self.take(8, what)?.try_into().expect("8 bytes"),
+        ))
+    }
+
     fn f32(&mut self, what: &str) -> Result<f32, CodecError> {
         Ok(f32::from_le_bytes(
             self.take(4, what)?.try_into().expect("4 bytes"),
@@ -231,15 +260,24 @@ pub fn read_file(bytes: &[u8], limits: ReadLimits) -> Result<V5dFile, CodecError
     if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
         return Err(CodecError::NotV5d);
     }
-    if bytes.len() < MIN_FILE_LEN {
+    let smallest = |version| fixed_len(version) + 8 + 4;
+    if bytes.len() < smallest(1) {
         return Err(CodecError::Truncated(format!(
-            "{} bytes, but the smallest .v5d file has {MIN_FILE_LEN}",
-            bytes.len()
+            "{} bytes, but the smallest .v5d file has {}",
+            bytes.len(),
+            smallest(1)
         )));
     }
     let version = u16::from_le_bytes([bytes[8], bytes[9]]);
-    if version != VERSION {
+    if !(1..=VERSION).contains(&version) {
         return Err(CodecError::Version(version));
+    }
+    if bytes.len() < smallest(version) {
+        return Err(CodecError::Truncated(format!(
+            "{} bytes, but the smallest .v5d file of version {version} has {}",
+            bytes.len(),
+            smallest(version)
+        )));
     }
     let (body, tail) = bytes.split_at(bytes.len() - 4);
     let stored = u32::from_le_bytes(tail.try_into().expect("4 bytes"));
@@ -247,11 +285,11 @@ pub fn read_file(bytes: &[u8], limits: ReadLimits) -> Result<V5dFile, CodecError
     if stored != computed {
         return Err(CodecError::Checksum { stored, computed });
     }
-    parse_body(body, limits)
+    parse_body(body, version, limits)
 }
 
-/// Parses everything before the checksum.
-fn parse_body(body: &[u8], limits: ReadLimits) -> Result<V5dFile, CodecError> {
+/// Parses everything before the checksum of a file of `version`.
+fn parse_body(body: &[u8], version: u16, limits: ReadLimits) -> Result<V5dFile, CodecError> {
     let mut c = Cursor {
         bytes: body,
         pos: MAGIC.len() + 2,
@@ -292,6 +330,21 @@ fn parse_body(body: &[u8], limits: ReadLimits) -> Result<V5dFile, CodecError> {
             root.lo, root.hi
         )));
     }
+    let frame = if version >= 2 {
+        let mut origin = [0.0; 3];
+        for k in &mut origin {
+            *k = c.f64("the frame origin")?;
+        }
+        let origin = DVec3::from_array(origin);
+        if !origin.is_finite() {
+            return Err(CodecError::Corrupt(format!(
+                "the frame origin {origin} is not finite"
+            )));
+        }
+        Frame { origin }
+    } else {
+        Frame::IDENTITY
+    };
     let params_len = c.u32("the parameter length")? as usize;
     let params = std::str::from_utf8(c.take(params_len, "the parameters")?)
         .map_err(|_| CodecError::Corrupt("the parameters are not UTF-8".into()))?
@@ -356,6 +409,7 @@ fn parse_body(body: &[u8], limits: ReadLimits) -> Result<V5dFile, CodecError> {
     Ok(V5dFile {
         coding,
         fingerprint,
+        frame,
         params,
         objects: table,
         tree,
@@ -386,6 +440,7 @@ mod tests {
         let file = V5dFile {
             coding: Coding::Leaves,
             fingerprint: 1,
+            frame: Frame::IDENTITY,
             params: String::new(),
             objects: vec![FileObject {
                 name: "é".repeat(40_000),
@@ -401,10 +456,16 @@ mod tests {
     fn fingerprint_sees_geometry_not_names() {
         let a = [[Vec3::ZERO, Vec3::X, Vec3::Y]];
         let b = [[Vec3::ZERO, Vec3::X, Vec3::Y * 1.000_001]];
-        let f = |objs: &[&[[Vec3; 3]]]| geometry_fingerprint(objs.iter().copied());
+        let f =
+            |objs: &[&[[Vec3; 3]]]| geometry_fingerprint(objs.iter().copied(), &Frame::IDENTITY);
         assert_eq!(f(&[&a]), f(&[&a]));
         assert_ne!(f(&[&a]), f(&[&b]));
         assert_ne!(f(&[&a, &a]), f(&[&a]));
         assert_ne!(f(&[&a, &[]]), f(&[&a]));
+        // The same local triangles elsewhere in the world.
+        let far = Frame {
+            origin: DVec3::new(1e6, 0.0, 0.0),
+        };
+        assert_ne!(geometry_fingerprint([&a[..]], &far), f(&[&a]));
     }
 }

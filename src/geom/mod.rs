@@ -1,5 +1,6 @@
 //! Geometry shared by every stage: boxes ([`Aabb`]), 5D view cells and
-//! the ray parametrisation ([`cell`]); with the builder, convex polygons
+//! the ray parametrisation ([`cell`]), the local frame of a scene far from
+//! the origin ([`Frame`]); with the builder, convex polygons
 //! in the plane ([`polygon`]) and the hierarchy of object boxes
 //! ([`BoxTree`]).
 //!
@@ -10,6 +11,7 @@ mod aabb;
 #[cfg(feature = "builder")]
 mod box_tree;
 pub mod cell;
+pub mod frame;
 #[cfg(feature = "builder")]
 pub mod polygon;
 
@@ -17,3 +19,4 @@ pub use aabb::Aabb;
 #[cfg(feature = "builder")]
 pub use box_tree::{BoxNode, BoxTree};
 pub use cell::Cell;
+pub use frame::Frame;

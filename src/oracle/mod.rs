@@ -175,7 +175,8 @@ impl OracleParams {
 pub struct PlaneReport {
     /// "+x", "-y", ...
     pub face: &'static str,
-    /// The plane's coordinate along its axis (world units).
+    /// The plane's coordinate along its axis (the scene's local
+    /// coordinates, [`crate::scene::Scene::frame`]).
     pub position: f64,
     /// Convex occluders drawn into its Depth Map.
     pub occluders: usize,

@@ -308,7 +308,7 @@ pub fn run(
         // meet can see, also outside the frustum; a renderer culls those
         // with the frustum anyway, so the method is both.
         let start = Instant::now();
-        pvs.query_view(view, &mut set);
+        pvs.query_view_local(view, &mut set);
         set.intersect_with(&frustum);
         let s = start.elapsed().as_secs_f64() + frustum_seconds;
         run_of(&mut runs, Method::Tree).record(scene, &t, &set, s);

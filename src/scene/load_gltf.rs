@@ -17,7 +17,7 @@
 use std::path::Path;
 
 use base64::Engine;
-use glam::{Mat4, Vec3};
+use glam::{DMat4, DVec3};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
 
@@ -40,9 +40,12 @@ pub(super) fn load_gltf(
     let buffers = load_buffers(path, &gltf, options)?;
     let doc = &gltf.document;
 
-    // World transforms of the nodes that are part of the scene.
+    // World transforms of the nodes that are part of the scene, composed
+    // in f64: georeferenced models put their large offset in a node's
+    // translation, and its precision must survive until the scene's frame
+    // is chosen.
     let n = doc.nodes().len();
-    let mut world: Vec<Option<Mat4>> = vec![None; n];
+    let mut world: Vec<Option<DMat4>> = vec![None; n];
     let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
         Some(scene) => scene.nodes().collect(),
         None => {
@@ -55,8 +58,8 @@ pub(super) fn load_gltf(
             doc.nodes().filter(|nd| !is_child[nd.index()]).collect()
         }
     };
-    let mut stack: Vec<(gltf::Node, Mat4)> =
-        roots.into_iter().map(|r| (r, Mat4::IDENTITY)).collect();
+    let mut stack: Vec<(gltf::Node, DMat4)> =
+        roots.into_iter().map(|r| (r, DMat4::IDENTITY)).collect();
     while let Some((node, parent)) = stack.pop() {
         if world[node.index()].is_some() {
             return Err(err(format!(
@@ -64,13 +67,14 @@ pub(super) fn load_gltf(
                 node.index()
             )));
         }
-        let m = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        let local = node.transform().matrix().map(|col| col.map(f64::from));
+        let m = parent * DMat4::from_cols_array_2d(&local);
         world[node.index()] = Some(m);
         stack.extend(node.children().map(|c| (c, m)));
     }
 
     let mut builder = SceneBuilder::new(format);
-    let mut positions: Vec<Vec3> = Vec::new();
+    let mut positions: Vec<DVec3> = Vec::new();
     let mut indices: Vec<u32> = Vec::new();
     for node in doc.nodes() {
         let (Some(mesh), Some(m)) = (node.mesh(), world[node.index()]) else {
@@ -111,7 +115,7 @@ pub(super) fn load_gltf(
                 reader
                     .read_positions()
                     .ok_or_else(|| err(format!("{what} POSITION cannot be read")))?
-                    .map(|p| m.transform_point3(Vec3::from_array(p))),
+                    .map(|p| m.transform_point3(DVec3::from_array(p.map(f64::from)))),
             );
             indices.clear();
             match reader.read_indices() {
@@ -135,7 +139,7 @@ pub(super) fn load_gltf(
                     positions[c as usize],
                 ];
                 builder
-                    .push_triangle(t)
+                    .push_triangle_f64(t)
                     .map_err(|bad| SceneError::NonFinite {
                         path: path.to_owned(),
                         line: 0,
@@ -145,6 +149,9 @@ pub(super) fn load_gltf(
             }
         }
     }
+    // The buffers are no longer needed: free them before the builder
+    // makes the scene's own triangles.
+    drop(buffers);
     builder.finish(path)
 }
 

@@ -21,7 +21,7 @@
 use std::io::{self, BufRead};
 use std::path::Path;
 
-use glam::Vec3;
+use glam::DVec3;
 
 use super::{Scene, SceneBuilder, SceneError, SceneFormat};
 
@@ -82,14 +82,17 @@ pub(super) fn load_obj(
     for model in &models {
         builder.begin_object(model.name.clone());
         let p = &model.mesh.positions;
+        // Positions are parsed as f64 (tobj's `use_f64`): a model in
+        // georeferenced coordinates keeps its precision until the scene's
+        // frame is chosen.
         let vertex = |i: u32| {
             let i = 3 * i as usize;
-            Vec3::new(p[i], p[i + 1], p[i + 2])
+            DVec3::new(p[i], p[i + 1], p[i + 2])
         };
         for tri in model.mesh.indices.chunks_exact(3) {
             let t = [vertex(tri[0]), vertex(tri[1]), vertex(tri[2])];
             builder
-                .push_triangle(t)
+                .push_triangle_f64(t)
                 .map_err(|bad| SceneError::NonFinite {
                     path: path.to_owned(),
                     line: 0,
@@ -98,6 +101,9 @@ pub(super) fn load_obj(
                 })?;
         }
     }
+    // tobj's copy is no longer needed: free it before the builder makes
+    // the scene's own.
+    drop(models);
     builder.finish(path)
 }
 
@@ -223,7 +229,7 @@ impl ObjLines<'_, '_> {
                 // through an exponent: parse just those.
                 if text.bytes().any(|b| b.is_ascii_alphabetic() && b != b'v') {
                     for w in words.take(4) {
-                        match w.parse::<f32>() {
+                        match w.parse::<f64>() {
                             Ok(x) if x.is_finite() => {}
                             Ok(_) => {
                                 return Err(LineErrorKind::NonFinite {
@@ -418,7 +424,8 @@ mod tests {
                 "dir/model.obj:2: object \"a\" has a vertex",
             ),
             (
-                "v 0 1e39 0\n".into(),
+                // Beyond f64 (1e39 is a coordinate: positions are f64).
+                "v 0 1e309 0\n".into(),
                 "dir/model.obj:1: object \"model\" has a vertex",
             ),
             (

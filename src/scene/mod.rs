@@ -27,16 +27,17 @@ use std::fmt;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rand::{Rng, RngExt};
 
-use crate::geom::Aabb;
+use crate::geom::{Aabb, Frame};
 use crate::invariant::InvariantError;
 
 pub use scene_builder::SceneBuilder;
 pub use write_obj::{write_obj, write_obj_file};
 
-/// A triangle: three corners, in scene (world) coordinates.
+/// A triangle: three corners, in the scene's local coordinates
+/// ([`Scene::frame`]).
 pub type Triangle = [Vec3; 3];
 
 /// One object of a scene: a named, contiguous range of triangles.
@@ -203,7 +204,24 @@ pub enum SceneError {
         /// The scene file.
         path: PathBuf,
         /// The diagonal of its bounding box (infinite when it overflows).
-        diagonal: f32,
+        diagonal: f64,
+    },
+    /// The scene lies so far from the origin, for its size, that its own
+    /// (f64) coordinates do not resolve it
+    /// ([`crate::geom::frame::MAX_DIAGONALS`]).
+    #[error(
+        "{}: the scene lies {distance:e} units from the origin but is only {diagonal:e} across: \
+         at that distance its coordinates cannot resolve it (the limit is {:e} diagonals): \
+         move the model nearer the origin and try again",
+        path.display(), crate::geom::frame::MAX_DIAGONALS
+    )]
+    FarFromOrigin {
+        /// The scene file.
+        path: PathBuf,
+        /// The distance of its bounding box's centre from the origin.
+        distance: f64,
+        /// The diagonal of its bounding box.
+        diagonal: f64,
     },
     /// A glTF names a buffer file outside its own folder.
     #[error(
@@ -267,7 +285,11 @@ fn line_suffix(line: usize) -> String {
 /// times the squared longest edge (the corners are collinear to within
 /// rounding), or the corners coincide.
 pub fn is_degenerate(t: &Triangle) -> bool {
-    let [a, b, c] = t.map(|v| v.as_dvec3());
+    degenerate_f64(&t.map(|v| v.as_dvec3()))
+}
+
+/// [`is_degenerate`] for f64 corners.
+fn degenerate_f64(&[a, b, c]: &[DVec3; 3]) -> bool {
     let (e0, e1, e2) = (b - a, c - a, c - b);
     let longest = e0
         .length_squared()
@@ -292,6 +314,7 @@ pub struct Scene {
     area_cdf: Vec<f64>,
     objects: Vec<Object>,
     bounds: Aabb,
+    frame: Frame,
     format: SceneFormat,
     report: LoadReport,
 }
@@ -320,9 +343,38 @@ impl Scene {
             .min(self.objects.len() - 1)
     }
 
-    /// The bounding box of the whole scene.
+    /// The bounding box of the whole scene, in local coordinates.
     pub fn bounds(&self) -> Aabb {
         self.bounds
+    }
+
+    /// Where the local coordinates of [`triangles`](Self::triangles),
+    /// [`bounds`](Self::bounds) and every other position of the scene sit
+    /// in the world: the identity for a scene modelled around the origin,
+    /// a translation for one far from it ([`Frame::for_bounds`]).
+    pub fn frame(&self) -> Frame {
+        self.frame
+    }
+
+    /// The same objects moved by `offset` (world units, f64): a scene put
+    /// where a georeferenced model would be, for tests and `vis5d scene
+    /// --offset`. The moved scene gets its own frame, so it is refused only
+    /// where a loaded model would be.
+    pub fn translated(&self, offset: DVec3, name: &Path) -> Result<Scene, SceneError> {
+        let mut b = SceneBuilder::new(self.format);
+        for (i, o) in self.objects.iter().enumerate() {
+            b.begin_object(o.name.clone());
+            for t in self.object_triangles(i) {
+                b.push_triangle_f64(t.map(|v| self.frame.to_world(v) + offset))
+                    .map_err(|bad| SceneError::NonFinite {
+                        path: name.to_owned(),
+                        line: 0,
+                        object: o.name.clone(),
+                        value: bad.0.to_string(),
+                    })?;
+            }
+        }
+        b.finish(name)
     }
 
     /// The format the scene was read from.
@@ -331,11 +383,13 @@ impl Scene {
     }
 
     /// The fingerprint of the scene's geometry
-    /// ([`crate::codec::geometry_fingerprint`]): stored in `.v5d` files so
-    /// that a file built for another version of the scene is detected.
+    /// ([`crate::codec::geometry_fingerprint`] of its local triangles and
+    /// its frame): stored in `.v5d` files so that a file built for another
+    /// version of the scene, or the scene somewhere else, is detected.
     pub fn fingerprint(&self) -> u64 {
         crate::codec::geometry_fingerprint(
             (0..self.objects.len()).map(|o| self.object_triangles(o)),
+            &self.frame,
         )
     }
 
@@ -543,6 +597,33 @@ mod tests {
             (mean - Vec3::new(1.0 / 3.0, 1.0 / 3.0, 0.0)).length() < 0.01,
             "{mean}"
         );
+    }
+
+    #[test]
+    fn far_scenes_keep_their_precision_through_obj() {
+        // The apartment in UTM coordinates: held relative to a frame near
+        // its centre, written in world coordinates, read back the same.
+        let near = procedural::generate(procedural::SceneKind::Apartment, 1, 1);
+        let offset = DVec3::new(500_123.7, 4_649_876.3, 250.0);
+        let far = near.translated(offset, Path::new("far.obj")).unwrap();
+        far.validate().unwrap();
+        assert!(near.frame().is_identity());
+        assert!((far.frame().origin - offset).abs().max_element() < 16.0);
+        // Local coordinates are as fine as the near scene's: every corner
+        // within an f32 step of the near one, moved.
+        let shift = (offset - far.frame().origin).as_vec3();
+        for (a, b) in near.triangles().iter().zip(far.triangles()) {
+            for (p, q) in a.iter().zip(b) {
+                assert!((*p + shift - *q).abs().max_element() < 1e-5, "{p} {q}");
+            }
+        }
+        let mut text = Vec::new();
+        write_obj(&far, &[], &mut text).unwrap();
+        let back = load_obj_bytes("far.obj", &text).unwrap();
+        assert_eq!(back.frame(), far.frame());
+        assert_eq!(back.triangles(), far.triangles());
+        assert_eq!(back.fingerprint(), far.fingerprint());
+        assert_ne!(far.fingerprint(), near.fingerprint());
     }
 
     #[test]

@@ -3,28 +3,37 @@
 //! triangles, no empty objects) are established, whatever the file format.
 
 use std::collections::BTreeMap;
+use std::ops::Range;
 use std::path::Path;
+
+use glam::DVec3;
 
 use super::{
     LoadReport, MAX_EXTENT, MIN_EXTENT, Object, Scene, SceneError, SceneFormat, Triangle,
-    is_degenerate, triangle_area,
+    degenerate_f64, is_degenerate, triangle_area,
 };
-use crate::geom::Aabb;
+use crate::geom::frame::MAX_DIAGONALS;
+use crate::geom::{Aabb, Frame};
 
 /// A coordinate that is NaN or infinite, refused by
 /// [`SceneBuilder::push_triangle`].
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct NonFinite(pub f32);
+pub struct NonFinite(pub f64);
 
 /// Builds a [`Scene`]: call [`begin_object`](Self::begin_object), push its
 /// triangles, repeat, then [`finish`](Self::finish).
+///
+/// Triangles are kept in world coordinates (f64) until `finish`, which
+/// chooses the scene's [`Frame`] from their bounds and converts them to
+/// local f32 coordinates; zero-area triangles are found there, in the
+/// coordinates every stage will use.
 #[derive(Debug)]
 pub struct SceneBuilder {
     format: SceneFormat,
-    triangles: Vec<Triangle>,
-    area_cdf: Vec<f64>,
-    objects: Vec<Object>,
-    report: LoadReport,
+    world: Vec<[DVec3; 3]>,
+    /// Object names and their ranges of `world`, in order.
+    groups: Vec<(String, Range<usize>)>,
+    skipped_non_triangles: usize,
 }
 
 impl SceneBuilder {
@@ -32,109 +41,160 @@ impl SceneBuilder {
     pub fn new(format: SceneFormat) -> Self {
         Self {
             format,
-            triangles: Vec::new(),
-            area_cdf: Vec::new(),
-            objects: Vec::new(),
-            report: LoadReport::default(),
+            world: Vec::new(),
+            groups: Vec::new(),
+            skipped_non_triangles: 0,
         }
     }
 
     /// Starts a new object; the triangles pushed from now on belong to it.
-    /// An object that ends with no triangle is dropped (and reported).
+    /// An object that ends with no triangle of non-zero area is dropped
+    /// (and reported).
     pub fn begin_object(&mut self, name: impl Into<String>) {
-        self.close_object();
-        let start = self.triangles.len() as u32;
-        self.objects.push(Object {
-            name: name.into(),
-            triangles: start..start,
-            bounds: Aabb::EMPTY,
-            area: 0.0,
-        });
+        let start = self.world.len();
+        self.groups.push((name.into(), start..start));
     }
 
     /// The name of the object being built, if any.
     pub fn current_object(&self) -> Option<&str> {
-        self.objects.last().map(|o| o.name.as_str())
+        self.groups.last().map(|(name, _)| name.as_str())
     }
 
-    /// Adds a triangle to the current object (starting an unnamed one if
-    /// none was begun). Degenerate triangles are counted and dropped; a
-    /// non-finite coordinate is refused.
+    /// Adds a triangle, in world coordinates, to the current object
+    /// (starting an unnamed one if none was begun). A non-finite coordinate
+    /// is refused.
     pub fn push_triangle(&mut self, t: Triangle) -> Result<(), NonFinite> {
+        self.push_triangle_f64(t.map(|v| v.as_dvec3()))
+    }
+
+    /// As [`push_triangle`](Self::push_triangle), with f64 corners: a
+    /// model in georeferenced coordinates keeps its precision until the
+    /// scene's frame is chosen.
+    pub fn push_triangle_f64(&mut self, t: [DVec3; 3]) -> Result<(), NonFinite> {
         if let Some(bad) = t.iter().flat_map(|v| v.to_array()).find(|c| !c.is_finite()) {
             return Err(NonFinite(bad));
         }
-        if self.objects.is_empty() {
+        if self.groups.is_empty() {
             self.begin_object("unnamed");
         }
-        if is_degenerate(&t) {
-            self.report.dropped_degenerate += 1;
-            return Ok(());
-        }
-        let o = self.objects.last_mut().expect("an object was begun above");
-        o.area += triangle_area(&t);
-        for v in t {
-            o.bounds.grow(v);
-        }
-        o.triangles.end += 1;
-        self.area_cdf.push(o.area);
-        self.triangles.push(t);
+        self.world.push(t);
+        self.groups
+            .last_mut()
+            .expect("an object was begun above")
+            .1
+            .end += 1;
         Ok(())
     }
 
     /// Counts a primitive that is not a surface (a line or a point).
     pub fn skip_non_triangle(&mut self) {
-        self.report.skipped_non_triangles += 1;
-    }
-
-    fn close_object(&mut self) {
-        if self.objects.last().is_some_and(|o| o.triangles.is_empty()) {
-            let o = self.objects.pop().expect("checked above");
-            self.report.dropped_empty_objects.push(o.name);
-        }
+        self.skipped_non_triangles += 1;
     }
 
     /// Finishes the scene; `path` names the source in errors.
-    pub fn finish(mut self, path: &Path) -> Result<Scene, SceneError> {
-        self.close_object();
-        if self.triangles.is_empty() {
+    ///
+    /// Refuses a scene whose size f32 cannot resolve ([`MIN_EXTENT`],
+    /// [`MAX_EXTENT`]) or that lies so far from the origin that its own
+    /// coordinates cannot ([`MAX_DIAGONALS`]); picks its frame
+    /// ([`Frame::for_bounds`]), converts every triangle to local
+    /// coordinates and drops those of zero area there.
+    pub fn finish(self, path: &Path) -> Result<Scene, SceneError> {
+        let mut report = LoadReport {
+            skipped_non_triangles: self.skipped_non_triangles,
+            ..LoadReport::default()
+        };
+        let (mut min, mut max) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        for v in self.world.iter().flatten() {
+            min = min.min(*v);
+            max = max.max(*v);
+        }
+        // A scene of zero-area triangles only is empty, whatever its size.
+        if !self.world.iter().any(|t| !degenerate_f64(t)) {
             return Err(SceneError::Empty {
                 path: path.to_owned(),
-                dropped: self.report.dropped_degenerate,
+                dropped: self.world.len(),
             });
         }
-        if self.triangles.len() >= u32::MAX as usize {
-            return Err(SceneError::TooLarge {
-                path: path.to_owned(),
-            });
-        }
-        let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
-        for o in &self.objects {
-            *counts.entry(o.name.as_str()).or_default() += 1;
-        }
-        self.report.duplicate_names = counts
-            .into_iter()
-            .filter(|&(_, n)| n > 1)
-            .map(|(name, n)| (name.to_owned(), n))
-            .collect();
-        let bounds = self
-            .objects
-            .iter()
-            .fold(Aabb::EMPTY, |b, o| b.union(&o.bounds));
-        let diagonal = bounds.diagonal();
-        if !(MIN_EXTENT..=MAX_EXTENT).contains(&diagonal) {
+        let diagonal = (max - min).length();
+        if !(f64::from(MIN_EXTENT)..=f64::from(MAX_EXTENT)).contains(&diagonal) {
             return Err(SceneError::Extent {
                 path: path.to_owned(),
                 diagonal,
             });
         }
+        let distance = ((min + max) * 0.5).length();
+        if distance > MAX_DIAGONALS * diagonal {
+            return Err(SceneError::FarFromOrigin {
+                path: path.to_owned(),
+                distance,
+                diagonal,
+            });
+        }
+        // Local coordinates are now within a few diagonals of zero, at most
+        // a few times MAX_EXTENT: finite in f32.
+        let frame = Frame::for_bounds(min, max);
+        let mut triangles = Vec::with_capacity(self.world.len());
+        let mut area_cdf = Vec::with_capacity(self.world.len());
+        let mut objects = Vec::with_capacity(self.groups.len());
+        for (name, range) in self.groups {
+            let start = triangles.len() as u64;
+            let mut area = 0.0;
+            let mut bounds = Aabb::EMPTY;
+            for w in &self.world[range] {
+                let t = w.map(|v| frame.to_local(v));
+                if is_degenerate(&t) {
+                    report.dropped_degenerate += 1;
+                    continue;
+                }
+                area += triangle_area(&t);
+                for v in t {
+                    bounds.grow(v);
+                }
+                area_cdf.push(area);
+                triangles.push(t);
+            }
+            let end = triangles.len() as u64;
+            if end == start {
+                report.dropped_empty_objects.push(name);
+                continue;
+            }
+            if end >= u64::from(u32::MAX) {
+                return Err(SceneError::TooLarge {
+                    path: path.to_owned(),
+                });
+            }
+            objects.push(Object {
+                name,
+                triangles: start as u32..end as u32,
+                bounds,
+                area,
+            });
+        }
+        drop(self.world);
+        if triangles.is_empty() {
+            return Err(SceneError::Empty {
+                path: path.to_owned(),
+                dropped: report.dropped_degenerate,
+            });
+        }
+        let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
+        for o in &objects {
+            *counts.entry(o.name.as_str()).or_default() += 1;
+        }
+        report.duplicate_names = counts
+            .into_iter()
+            .filter(|&(_, n)| n > 1)
+            .map(|(name, n)| (name.to_owned(), n))
+            .collect();
+        let bounds = objects.iter().fold(Aabb::EMPTY, |b, o| b.union(&o.bounds));
         Ok(Scene {
-            triangles: self.triangles,
-            area_cdf: self.area_cdf,
-            objects: self.objects,
+            triangles,
+            area_cdf,
+            objects,
             bounds,
+            frame,
             format: self.format,
-            report: self.report,
+            report,
         })
     }
 }
@@ -163,6 +223,29 @@ mod tests {
         assert_eq!(s.report().dropped_degenerate, 1);
         assert_eq!(s.report().dropped_empty_objects, ["empty"]);
         assert_eq!(s.report().duplicate_names, [("a".to_owned(), 2)]);
+    }
+
+    #[test]
+    fn a_scene_its_coordinates_cannot_resolve_is_refused() {
+        // A millimetre-wide part 1e6 m out: 1e9 diagonals from the origin.
+        let mut b = SceneBuilder::new(SceneFormat::Procedural);
+        let o = DVec3::new(1e6, 0.0, 0.0);
+        b.push_triangle_f64([o, o + DVec3::X * 1e-3, o + DVec3::Y * 1e-3])
+            .unwrap();
+        let e = b.finish(Path::new("part.obj")).unwrap_err();
+        assert!(matches!(e, SceneError::FarFromOrigin { .. }), "{e}");
+        assert!(e.to_string().contains("move the model nearer"), "{e}");
+        // A metre-wide one there is held in a frame centred on it.
+        let mut b = SceneBuilder::new(SceneFormat::Procedural);
+        b.push_triangle_f64([o, o + DVec3::X, o + DVec3::Y])
+            .unwrap();
+        let s = b.finish(Path::new("part.obj")).unwrap();
+        s.validate().unwrap();
+        // The centre (1e6 + 0.5, 0.5, 0) rounded to whole metres (the
+        // largest power of two not above the diagonal, 1.41).
+        assert_eq!(s.frame().origin, DVec3::new(1_000_001.0, 1.0, 0.0));
+        let b = s.bounds();
+        assert!(b.min.abs().max(b.max.abs()).max_element() <= 1.0, "{b:?}");
     }
 
     #[test]

@@ -1,7 +1,9 @@
 //! Writing a [`Scene`] as OBJ: one `o` group per object, vertices shared
-//! within an object, coordinates in Rust's shortest round-trip notation (so
-//! reading the file back gives the same `f32`s, and the same scene and seed
-//! give the same bytes on every machine).
+//! within an object, coordinates in world units in Rust's shortest
+//! round-trip notation (so reading the file back gives the same scene, and
+//! the same scene and seed give the same bytes on every machine): the
+//! `f32`s themselves for a scene near the origin, the f64 world values
+//! ([`crate::geom::Frame::world_text`]) for one far from it.
 
 use std::collections::HashMap;
 use std::io::{self, Write};
@@ -39,8 +41,9 @@ pub fn write_obj(scene: &Scene, header: &[String], out: &mut impl Write) -> io::
                     })
             }));
         }
+        let frame = scene.frame();
         for v in &verts {
-            writeln!(out, "v {} {} {}", v.x, v.y, v.z)?;
+            writeln!(out, "v {}", frame.world_text(*v).replace(',', " "))?;
         }
         for [a, b, c] in &faces {
             writeln!(out, "f {a} {b} {c}")?;

@@ -216,6 +216,100 @@ fn scenes_whose_size_f32_cannot_resolve_are_refused() {
     }
 }
 
+/// A scene far from the origin (a georeferenced model in UTM coordinates)
+/// built a hundred times slower than at the origin, because the tracer's
+/// margins grew with the largest coordinate, and was resolved in f32 steps
+/// of its world coordinates. It is now held in a local frame whose origin
+/// the `.v5d` keeps: built as at the origin, queried in world coordinates.
+#[test]
+fn scenes_far_from_the_origin_build_as_they_do_at_the_origin() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
+    let (near, far) = (path("near.obj"), path("far.obj"));
+    let offset = [500_123.7, 4_649_876.3, 250.0];
+    let offset_flag = format!("{},{},{}", offset[0], offset[1], offset[2]);
+    assert!(vis5d(&["scene", "apartment", "-o", &near]).status.success());
+    let out = vis5d(&["scene", "apartment", "--offset", &offset_flag, "-o", &far]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let build = |model: &str| {
+        let out = vis5d(&[
+            "build",
+            model,
+            "--max-depth",
+            "5",
+            "--verify-views",
+            "10",
+            "--json",
+        ]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let (n, f) = (build(&near), build(&far));
+    assert!(n.get("frame_origin").is_none(), "{n}");
+    let origin = f["frame_origin"]
+        .as_array()
+        .expect("a far scene has a frame");
+    for (o, want) in origin.iter().zip(offset) {
+        assert!((o.as_f64().unwrap() - want).abs() < 20.0, "{origin:?}");
+    }
+    // The same work and the same accuracy against rays as at the origin.
+    let rays = |j: &serde_json::Value| j["rays_cast"].as_f64().unwrap();
+    assert!(
+        (rays(&f) / rays(&n) - 1.0).abs() < 0.1,
+        "{} vs {}",
+        rays(&f),
+        rays(&n)
+    );
+    let error = |j: &serde_json::Value| j["pixel_error"]["fraction"].as_f64().unwrap();
+    assert!(
+        error(&f) <= 2.0 * error(&n) + 1e-4,
+        "{} vs {}",
+        error(&f),
+        error(&n)
+    );
+    // Queried in world coordinates, the far tree answers what the near one
+    // answers at the same place in the room.
+    let query = |v5d: &str, model: &str, pos: [f64; 3]| {
+        let pos = format!("{},{},{}", pos[0], pos[1], pos[2]);
+        let out = vis5d(&[
+            "query", v5d, "--pos", &pos, "--dir", "1,0.3,0", "--scene", model, "--json",
+        ]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        serde_json::from_slice::<Vec<String>>(&out.stdout).unwrap()
+    };
+    let eye = [2.0, 2.0, 1.5];
+    let a = query(&path("near.v5d"), &near, eye);
+    let b = query(
+        &path("far.v5d"),
+        &far,
+        [0, 1, 2].map(|k| eye[k] + offset[k]),
+    );
+    let common = a.iter().filter(|x| b.contains(x)).count();
+    // Positions outside the view box get every object: both eyes are in.
+    assert!(
+        a.len() < 174 && b.len() < 174,
+        "{} and {} of 174",
+        a.len(),
+        b.len()
+    );
+    assert!(
+        common as f64 >= 0.8 * a.len().max(b.len()) as f64,
+        "near {a:?}\nfar {b:?}"
+    );
+    // The tree knows where its scene is: the near model is not its scene.
+    let out = vis5d(&[
+        "query",
+        &path("far.v5d"),
+        "--pos",
+        "0,0,0",
+        "--dir",
+        "1,0,0",
+        "--scene",
+        &near,
+    ]);
+    refused(&out, "another");
+}
+
 /// Flags that asked for more than the machine has aborted on a failed
 /// allocation (86 GB of cached rays, 45 GB of pixels), ran for ever, or
 /// panicked; every numeric flag now has a range, and work whose size is
@@ -507,7 +601,7 @@ fn any_accepted_scene_builds_a_tree_that_decodes() {
         assert_eq!(back.tree, tree, "case {case}");
         let pvs = Pvs::from_bytes(&bytes).unwrap();
         let mut out = pvs.new_set();
-        pvs.query_view(
+        pvs.query_view_local(
             &View::square(scene.bounds().center(), Vec3::X, 90.0),
             &mut out,
         );

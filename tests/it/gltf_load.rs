@@ -478,3 +478,36 @@ fn a_missing_position_accessor_is_an_error_not_a_panic() {
 fn fuzz_corpus_loads_or_is_refused_without_panicking() {
     crate::replay_scene_corpus("gltf");
 }
+
+/// A georeferenced glTF puts its large offset in a node's translation:
+/// composed in f64 and held in a local frame, the mesh keeps the precision
+/// of its f32 positions (in f32 world coordinates, 4.6e6 steps by 0.5).
+#[test]
+fn a_georeferenced_node_translation_keeps_the_mesh_precise() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut fine = tri_mesh(Some("fine"));
+    for p in &mut fine.positions {
+        *p = p.map(|c| c * 0.1); // a part 10 cm across
+    }
+    let offset = [500_123.25, 4_649_876.5, 12.0];
+    let nodes = json!([{"name": "part", "mesh": 0, "translation": offset}]);
+    let (doc, bin) = document(&[fine], nodes, json!([{"nodes": [0]}]));
+    let s = scene::load(write_embedded(&dir, "geo.gltf", doc, &bin)).unwrap();
+    s.validate().unwrap();
+    let frame = s.frame();
+    assert!(!frame.is_identity());
+    let local = tri_mesh(None);
+    for (t, ix) in s
+        .object_triangles(0)
+        .iter()
+        .zip(local.indices.as_ref().unwrap().chunks(3))
+    {
+        for (v, &i) in t.iter().zip(ix) {
+            let want =
+                glam::DVec3::from_array(local.positions[i as usize].map(|c| f64::from(c * 0.1)))
+                    + glam::DVec3::from_array(offset);
+            let got = frame.to_world(*v);
+            assert!((got - want).length() < 1e-8, "{got} vs {want}");
+        }
+    }
+}

@@ -267,7 +267,7 @@ fn damaged_files_are_refused_with_a_reason() {
         b[n..].copy_from_slice(&crc.to_le_bytes());
         b
     };
-    let cases: [(usize, Vec<u8>, &str); 6] = [
+    let cases: [(usize, Vec<u8>, &str); 8] = [
         (10, vec![7], "unknown coding"),
         (11, vec![0], "grid bits"),
         (12, u32::MAX.to_le_bytes().to_vec(), "objects cannot fit"),
@@ -278,6 +278,9 @@ fn damaged_files_are_refused_with_a_reason() {
             "binary tree",
         ),
         (32, f32::NAN.to_le_bytes().to_vec(), "root cell"),
+        (80, f64::INFINITY.to_le_bytes().to_vec(), "frame origin"),
+        // Version 1 has no frame: its parameters start where the origin is.
+        (8, 1u16.to_le_bytes().to_vec(), "corrupt"),
     ];
     for (offset, bytes, want) in cases {
         let e = read(&patch(offset, &bytes)).unwrap_err();
