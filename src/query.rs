@@ -142,6 +142,87 @@ impl AngularRanges {
     }
 }
 
+/// A view's frustum as inward planes, to cull an answer to what the view
+/// can show: an object whose bounding box lies wholly outside one plane is
+/// not drawn by the view whatever the tree says.
+///
+/// Built for a box of eye positions, it is the union of the frusta of
+/// every eye in the box (each plane moved back to the box's corner
+/// furthest behind it), so culling with it is conservative for all of
+/// them. When the view's frame is ill-defined (`up` along `dir`, the case
+/// [`frustum_angles`] answers with a cone) only the eye's plane culls;
+/// a field of view above 170 degrees culls nothing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Frustum {
+    /// `(n, d)`: a point `p` may be seen only where `n . p >= d`.
+    planes: [(Vec3, f32); 5],
+    /// How many of `planes` are used.
+    count: usize,
+}
+
+impl Frustum {
+    /// The frustum of `view` from every eye in `eyes` (in the coordinates
+    /// of the boxes it will test).
+    pub fn new(view: &View, eyes: &Aabb) -> Frustum {
+        let none = Frustum {
+            planes: [(Vec3::ZERO, 0.0); 5],
+            count: 0,
+        };
+        let f = view.dir.as_dvec3();
+        let len = f.length();
+        let fovs_ok = view.fov_x >= 0.0
+            && view.fov_y >= 0.0
+            && view.fov_x.max(view.fov_y) <= 170f32.to_radians();
+        if !(len > 0.0
+            && len.is_finite()
+            && fovs_ok
+            && eyes.min.is_finite()
+            && eyes.max.is_finite())
+        {
+            return none;
+        }
+        let f = f / len;
+        let mut normals = [f; 5];
+        let mut used = 1;
+        let up = view.up.as_dvec3();
+        let r0 = f.cross(up);
+        if r0.length() > 1e-3 * up.length() && r0.length().is_finite() {
+            let r = (r0 - f * r0.dot(f)).normalize();
+            let u = r.cross(f);
+            let (tx, ty) = (
+                (f64::from(view.fov_x) * 0.5).tan(),
+                (f64::from(view.fov_y) * 0.5).tan(),
+            );
+            normals[1..].copy_from_slice(&[
+                (f - r * tx).cross(u),
+                u.cross(f + r * tx),
+                (f + u * ty).cross(r),
+                r.cross(f - u * ty),
+            ]);
+            used = 5;
+        }
+        let mut out = none;
+        for n in &normals[..used] {
+            let n = n.normalize().as_vec3();
+            // The eye of the box furthest behind the plane.
+            let e = Vec3::select(n.cmpge(Vec3::ZERO), eyes.min, eyes.max);
+            out.planes[out.count] = (n, n.dot(e));
+            out.count += 1;
+        }
+        out
+    }
+
+    /// Whether some point of the box `b` may be in the frustum: false only
+    /// when all of it is outside one plane (by more than f32 rounding).
+    pub fn may_see(&self, b: &Aabb) -> bool {
+        self.planes[..self.count].iter().all(|&(n, d)| {
+            let p = Vec3::select(n.cmpge(Vec3::ZERO), b.max, b.min);
+            let along = n.dot(p);
+            along >= d - 1e-5 * (1.0 + d.abs() + along.abs())
+        })
+    }
+}
+
 /// Angular boxes that contain every direction of the frustum looking along
 /// `dir` with `up`, `fov_x` by `fov_y` radians: one box, or two when the
 /// theta range crosses +-pi. A frustum containing (or passing within 0.01
@@ -312,6 +393,8 @@ pub struct Pvs {
     frame: Frame,
     params: String,
     objects: Vec<FileObject>,
+    /// Per object, its bounds when the file has them (local).
+    bounds: Vec<Option<Aabb>>,
     root: Cell,
     nodes: Vec<QueryNode>,
     /// `words` words per node, in node order.
@@ -382,6 +465,7 @@ impl Pvs {
             fingerprint: file.fingerprint,
             frame: file.frame,
             params: file.params,
+            bounds: file.objects.iter().map(|o| o.bounds).collect(),
             objects: file.objects,
             root,
             nodes,
@@ -393,6 +477,12 @@ impl Pvs {
     /// The objects, in scene order: names and triangle counts.
     pub fn objects(&self) -> &[FileObject] {
         &self.objects
+    }
+
+    /// The bounding box of object `object` in local coordinates, as the
+    /// file stores it (quantised outwards); `None` for a version 1 file.
+    pub fn object_bounds(&self, object: usize) -> Option<Aabb> {
+        self.bounds[object]
     }
 
     /// The number of objects (the capacity of every answer).
@@ -505,7 +595,9 @@ impl Pvs {
     }
 
     /// The objects visible from `view` (its position in world
-    /// coordinates), written into `out` (cleared first).
+    /// coordinates), written into `out` (cleared first): the tree's answer
+    /// for the view's directions, culled to its frustum with the objects'
+    /// bounds ([`Frustum`]; a version 1 file has none and is not culled).
     pub fn query_view(&self, view: &View, out: &mut ObjectSet) {
         let p = view.position.as_dvec3();
         let r = DVec3::splat(f64::from(view.radius.max(0.0)));
@@ -526,6 +618,29 @@ impl Pvs {
 
     /// The objects visible from the local `positions` in `view`'s frustum.
     fn query_view_from(&self, positions: &Aabb, view: &View, out: &mut ObjectSet) {
+        self.query_view_unculled(positions, view, out);
+        self.cull(&Frustum::new(view, positions), out);
+    }
+
+    /// Removes from `out` the objects whose bounds `frustum` cannot see.
+    fn cull(&self, frustum: &Frustum, out: &mut ObjectSet) {
+        for (w, word) in out.words_mut().iter_mut().enumerate() {
+            let mut bits = *word;
+            while bits != 0 {
+                let b = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                if let Some(Some(bounds)) = self.bounds.get(w * 64 + b)
+                    && !frustum.may_see(bounds)
+                {
+                    *word &= !(1u64 << b);
+                }
+            }
+        }
+    }
+
+    /// The union of the leaf sets the view's positions and directions
+    /// meet, not culled to the frustum.
+    fn query_view_unculled(&self, positions: &Aabb, view: &View, out: &mut ObjectSet) {
         out.clear();
         let ranges = frustum_angles(view.dir, view.up, view.fov_x, view.fov_y);
         for &(t0, t1, p0, p1) in ranges.boxes() {
@@ -622,6 +737,42 @@ mod tests {
     use super::*;
     use crate::geom::cell::angles_to_direction;
     use std::f32::consts::FRAC_PI_2;
+
+    #[test]
+    fn a_frustum_of_many_eyes_sees_what_each_eye_sees() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        let eyes = Aabb::new(Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5));
+        let mut point = |scale: f32| {
+            Vec3::new(rng.random(), rng.random(), rng.random()) * (2.0 * scale) - Vec3::splat(scale)
+        };
+        let (mut seen, mut culled) = (0, 0);
+        for _ in 0..200 {
+            let view = View::square(Vec3::ZERO, point(1.0), 70.0);
+            let union = Frustum::new(&view, &eyes);
+            let b = {
+                let c = point(6.0);
+                Aabb::new(c, c + point(0.5).abs())
+            };
+            let by_union = union.may_see(&b);
+            culled += usize::from(!by_union);
+            for _ in 0..50 {
+                let e = eyes.lerp(point(0.5) + Vec3::splat(0.5));
+                let one = Frustum::new(
+                    &View {
+                        position: e,
+                        ..view
+                    },
+                    &Aabb::new(e, e),
+                );
+                if one.may_see(&b) {
+                    seen += 1;
+                    assert!(by_union, "{b:?} seen from {e} but culled for the box");
+                }
+            }
+        }
+        assert!(seen > 0 && culled > 20, "seen {seen}, culled {culled}");
+    }
 
     /// Every direction of the frustum (a dense grid over it, the edges
     /// included) lies in one of the boxes; angles in f64.

@@ -363,6 +363,7 @@ pub fn to_file(
             .map(|o| FileObject {
                 name: o.name.clone(),
                 triangles: o.triangle_count() as u32,
+                bounds: Some(o.bounds),
             })
             .collect(),
         tree,

@@ -451,7 +451,7 @@ fn write_files(dir: &Path, r: &ReportJson, e: &Experiment) -> Result<()> {
          {} views that show something ({} show nothing); worst view: the largest, and which view. Missed objects: \
          objects seen but not drawn, counted per view (an object missed in 3 views counts 3), and how many distinct. \
          Q_u = |S_E \\ S_A| / |S_E| and Q_o = |S_A \\ S_E| / |S_E| (S_E the objects seen, S_A those drawn), averaged \
-         like the pixel error. ms / view: the method's time per view; for the tree and the oracle it includes the \
+         like the pixel error. ms / view: the method's time per view; for the tree it is the query (culling included), for the oracle it includes the \
          frustum test, for the lazy grid it is the lazy pass alone (the busy pass is timed in report.json). The ground \
          truth took {:.0} ms per view. Lazy occlusion grid ({} x {} pixel cells): {} pixel-level queries with lazy \
          updates, {} with busy ones ({}).{}",

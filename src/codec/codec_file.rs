@@ -11,9 +11,10 @@
 use glam::{DVec3, Vec3};
 
 use super::CodecError;
+use super::codec_bounds::BoundsGrid;
 use super::codec_tree::{Coding, DecodeLimits, decode, encode};
-use crate::geom::Frame;
 use crate::geom::cell::{Cell, DIMS};
+use crate::geom::{Aabb, Frame};
 use crate::tree::VisTree;
 
 /// The first 8 bytes of every `.v5d` file: a non-ASCII byte, "V5D", CR LF,
@@ -26,10 +27,17 @@ pub const MAGIC: [u8; 8] = [0x89, b'V', b'5', b'D', b'\r', b'\n', 0x1a, b'\n'];
 pub const VERSION: u16 = 2;
 
 /// The size of the fixed header of a file of `version`, before the
-/// parameters: version 2 added the frame origin, three f64.
+/// parameters: version 2 added the frame origin (three f64) and the grid
+/// of the object bounds (six f32).
 const fn fixed_len(version: u16) -> usize {
     let v1 = 8 + 2 + 1 + 1 + 4 + 4 + 4 + 8 + 4 * 2 * DIMS + 4;
-    if version >= 2 { v1 + 3 * 8 } else { v1 }
+    if version >= 2 { v1 + 3 * 8 + 6 * 4 } else { v1 }
+}
+
+/// The fewest bytes an object's entry takes in a file of `version`: its
+/// triangle count, (version 2) its bounds codes, its name's length.
+const fn min_object_len(version: u16) -> usize {
+    if version >= 2 { 4 + 12 + 2 } else { 4 + 2 }
 }
 
 /// The smallest possible file of the version written: the fixed header,
@@ -38,12 +46,16 @@ const fn fixed_len(version: u16) -> usize {
 pub const MIN_FILE_LEN: usize = fixed_len(VERSION) + 8 + 4;
 
 /// One object of the file's object table.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct FileObject {
     /// The object's name in the scene.
     pub name: String,
     /// Its triangle count (what drawing it costs).
     pub triangles: u32,
+    /// Its bounding box in the tree's local coordinates, as stored:
+    /// quantised outwards (it holds the object's box); `None` when the
+    /// file does not say (version 1).
+    pub bounds: Option<Aabb>,
 }
 
 /// Everything a `.v5d` file holds.
@@ -175,10 +187,23 @@ pub fn write_file(file: &V5dFile) -> Vec<u8> {
     for c in file.frame.origin.to_array() {
         out.extend_from_slice(&c.to_le_bytes());
     }
+    let grid = BoundsGrid::over(file.objects.iter().filter_map(|o| o.bounds.as_ref()));
+    for v in grid
+        .space
+        .min
+        .to_array()
+        .iter()
+        .chain(&grid.space.max.to_array())
+    {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
     out.extend_from_slice(&(file.params.len() as u32).to_le_bytes());
     out.extend_from_slice(file.params.as_bytes());
     for o in &file.objects {
         out.extend_from_slice(&o.triangles.to_le_bytes());
+        for q in grid.quantise(o.bounds.as_ref()) {
+            out.extend_from_slice(&q.to_le_bytes());
+        }
         // At most 65535 bytes, cut at a character boundary.
         let mut end = o.name.len().min(u16::MAX as usize);
         while !o.name.is_char_boundary(end) {
@@ -345,13 +370,33 @@ fn parse_body(body: &[u8], version: u16, limits: ReadLimits) -> Result<V5dFile, 
     } else {
         Frame::IDENTITY
     };
+    let grid = if version >= 2 {
+        let mut corners = [0.0f32; 6];
+        for k in &mut corners {
+            *k = c.f32("the bounds grid")?;
+        }
+        let grid = BoundsGrid {
+            space: Aabb::new(
+                Vec3::new(corners[0], corners[1], corners[2]),
+                Vec3::new(corners[3], corners[4], corners[5]),
+            ),
+        };
+        if !grid.is_valid() {
+            return Err(CodecError::Corrupt(format!(
+                "the bounds grid {corners:?} is not a box (finite, low <= high)"
+            )));
+        }
+        Some(grid)
+    } else {
+        None
+    };
     let params_len = c.u32("the parameter length")? as usize;
     let params = std::str::from_utf8(c.take(params_len, "the parameters")?)
         .map_err(|_| CodecError::Corrupt("the parameters are not UTF-8".into()))?
         .to_owned();
-    // Each object takes at least 6 bytes: bound the count before
-    // allocating the table.
-    if objects > c.left() / 6 {
+    // Each object takes at least 6 bytes (18 in version 2): bound the
+    // count before allocating the table.
+    if objects > c.left() / min_object_len(version) {
         return Err(CodecError::Truncated(format!(
             "{objects} objects cannot fit in the {} bytes left",
             c.left()
@@ -369,12 +414,24 @@ fn parse_body(body: &[u8], version: u16, limits: ReadLimits) -> Result<V5dFile, 
     let mut table = Vec::with_capacity(objects);
     for i in 0..objects {
         let triangles = c.u32("an object's triangle count")?;
+        let bounds = match &grid {
+            Some(grid) => {
+                let mut q = [0u16; 6];
+                for k in &mut q {
+                    *k = c.u16("an object's bounds")?;
+                }
+                grid.dequantise(q)
+                    .map_err(|e| CodecError::Corrupt(format!("object {i}: {e}")))?
+            }
+            None => None,
+        };
         let len = c.u16("an object's name length")? as usize;
         let name = std::str::from_utf8(c.take(len, "an object's name")?)
             .map_err(|_| CodecError::Corrupt(format!("object {i}'s name is not UTF-8")))?;
         table.push(FileObject {
             name: name.to_owned(),
             triangles,
+            bounds,
         });
     }
     let bits = c.u64("the tree's bit length")?;
@@ -445,6 +502,7 @@ mod tests {
             objects: vec![FileObject {
                 name: "é".repeat(40_000),
                 triangles: 1,
+                bounds: None,
             }],
             tree,
         };

@@ -4,10 +4,12 @@
 //! Part of the runtime side: no builder dependency.
 
 mod codec_bits;
+mod codec_bounds;
 mod codec_file;
 mod codec_tree;
 
 pub use codec_bits::{BitReader, BitWriter};
+pub use codec_bounds::{BoundsGrid, UNKNOWN as UNKNOWN_BOUNDS};
 pub use codec_file::{
     FileObject, MAGIC, MIN_FILE_LEN, ReadLimits, V5dFile, VERSION, crc32, geometry_fingerprint,
     read_file, write_file,
@@ -23,7 +25,7 @@ pub enum CodecError {
     NotV5d,
     /// Written by another version of the format.
     #[error(
-        "unsupported .v5d format version {0}: this vis5d reads version {VERSION}; rebuild the file"
+        "unsupported .v5d format version {0}: this vis5d reads versions 1 to {VERSION}; rebuild the file"
     )]
     Version(u16),
     /// The file ends early.

@@ -1,9 +1,8 @@
 //! The ground truth of a view and a method's figures against it.
 
-use glam::Vec3;
-
 use crate::bitset::ObjectSet;
 use crate::geom::Aabb;
+use crate::query::{Frustum, View};
 use crate::render::{Camera, IdBuffer};
 use crate::scene::Scene;
 use crate::trace::Tracer;
@@ -41,49 +40,15 @@ pub fn truth(scene: &Scene, tracer: &Tracer, camera: &Camera) -> ViewTruth {
     }
 }
 
-/// The camera's frustum as five planes `(n, d)` (a point `p` is inside
-/// when `n . p >= d` for all): the four sides through the eye and the
-/// eye's plane (the near plane at distance 0).
-pub fn frustum_planes(camera: &Camera) -> [(Vec3, f32); 5] {
-    let (f, r, u) = (camera.forward, camera.right, camera.up);
-    let (tx, ty) = (camera.tan_x, camera.tan_y);
-    // Edge directions of the four side planes.
-    let left = (f - r * tx).cross(u);
-    let right = u.cross(f + r * tx);
-    let top = (f + u * ty).cross(r);
-    let bottom = r.cross(f - u * ty);
-    let e = camera.eye;
-    let plane = |n: Vec3| {
-        let n = n.normalize();
-        (n, n.dot(e))
-    };
-    [
-        plane(f),
-        plane(left),
-        plane(right),
-        plane(top),
-        plane(bottom),
-    ]
-}
-
-/// Whether the box `b` may meet the frustum: false only when all its
-/// corners are strictly outside one plane (conservative: some boxes near
-/// the frustum's edges are kept though outside).
-pub fn box_in_frustum(planes: &[(Vec3, f32); 5], b: &Aabb) -> bool {
-    planes.iter().all(|&(n, d)| {
-        // The corner furthest along n.
-        let p = Vec3::select(n.cmpge(Vec3::ZERO), b.max, b.min);
-        n.dot(p) >= d - 1e-6 * (1.0 + d.abs())
-    })
-}
-
 /// View-frustum culling: the objects whose bounding box may meet the
-/// camera's frustum, into `out` (cleared first).
-pub fn frustum_set(scene: &Scene, camera: &Camera, out: &mut ObjectSet) {
+/// frustum of `view` from its eye ([`Frustum`], the test
+/// [`crate::query::Pvs::query_view`] culls with), into `out` (cleared
+/// first).
+pub fn frustum_set(scene: &Scene, view: &View, out: &mut ObjectSet) {
     out.clear();
-    let planes = frustum_planes(camera);
+    let frustum = Frustum::new(view, &Aabb::new(view.position, view.position));
     for (i, o) in scene.objects().iter().enumerate() {
-        if box_in_frustum(&planes, &o.bounds) {
+        if frustum.may_see(&o.bounds) {
             out.insert(i);
         }
     }
@@ -245,7 +210,7 @@ mod tests {
         for view in random_views(&scene.bounds(), 20, 90.0, 3) {
             let cam = Camera::new(&view, 64, 64).expect("valid views");
             let t = truth(&scene, &tracer, &cam);
-            frustum_set(&scene, &cam, &mut set);
+            frustum_set(&scene, &view, &mut set);
             let m = ViewMetrics::of(&scene, &t, &set, 0.0);
             assert_eq!((m.missing_pixels, m.missed_objects), (0, 0), "{view:?}");
             assert!(t.set(scene.objects().len()).is_subset(&set));
