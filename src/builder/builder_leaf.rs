@@ -22,6 +22,15 @@
 //!   almost all rejected ([`AdaptiveSampler::hopeless`], or more than
 //!   `rejection_budget` rejected): conservative.
 //!
+//! A leaf also *retests* the objects an ancestor called invisible
+//! ([`BuildParams::retest_rays`](super::BuildParams::retest_rays) samples
+//! each, from a stream of their own): an object seen from a small part of
+//! a big cell falls under the SPRT's threshold there, but in the leaf that
+//! holds that part its visible fraction is large. A retest hit puts it in
+//! the leaf's set (and, through the unions, its ancestors'); a retest that
+//! only misses, or whose samples are almost all rejected, leaves it out
+//! (the ancestor's full test stands).
+//!
 //! The result does not depend on thread count: streams are seeded by
 //! (node seed, object) and the rounds are processed in object order.
 
@@ -39,6 +48,8 @@ use crate::trace::Ray;
 /// One candidate under test.
 struct Pending {
     object: usize,
+    /// Retested (an ancestor's test dropped it), not a candidate.
+    retest: bool,
     /// Rays taken that did not hit it.
     misses: u32,
     rng: Pcg64,
@@ -47,35 +58,63 @@ struct Pending {
     done: bool,
 }
 
-/// The visible set of `cell`: `proven` (objects hit by its cached rays)
-/// plus the candidates the SPRT keeps. An object is declared invisible
-/// only after at least `min_misses` rays (internal nodes ask for more
-/// evidence than the SPRT's own).
+/// The stream family of retest samples (apart from the candidates' own).
+const RETEST_STREAM: u64 = 0x7265_7465_7374;
+
+/// What a cell tests.
+pub(super) struct Tests<'a> {
+    /// The candidates (the parent's set; every object at the root).
+    pub candidates: &'a ObjectSet,
+    /// Objects an ancestor called invisible, to retest (empty but in
+    /// leaves).
+    pub retest: &'a ObjectSet,
+    /// Objects hit by the cell's cached rays.
+    pub proven: ObjectSet,
+    /// An object is declared invisible only after at least this many rays
+    /// (internal nodes ask for more evidence than the SPRT's own).
+    pub min_misses: u32,
+}
+
+/// The visible set of `cell`: `proven` plus the candidates the SPRT keeps
+/// plus the retested objects a ray hits; and the candidates the SPRT
+/// called invisible (for the leaves below to retest).
 pub(super) fn visible_set(
     ctx: &Ctx,
     cell: &Cell,
-    candidates: &ObjectSet,
-    proven: ObjectSet,
+    tests: Tests<'_>,
     seed: u64,
-    min_misses: u32,
     stats: &mut BuildStats,
-) -> ObjectSet {
+) -> (ObjectSet, ObjectSet) {
     let params = ctx.params;
-    let mut set = proven;
+    let min_misses = tests.min_misses;
+    let mut set = tests.proven;
+    let mut rejected = ObjectSet::new(set.capacity());
     stats.decisions.proven_by_hit += set.count() as u64;
     let mut pending: Vec<Pending> = Vec::new();
-    for o in candidates.iter() {
+    let retest_seed = mix(seed, RETEST_STREAM);
+    let queue = tests
+        .candidates
+        .iter()
+        .map(|o| (o, false))
+        .chain(tests.retest.iter().map(|o| (o, true)));
+    for (o, retest) in queue {
         if set.contains(o) {
             continue;
         }
         if !reachable(cell, &ctx.scene.objects()[o].bounds) {
-            stats.decisions.geometry_invisible += 1;
+            if !retest {
+                stats.decisions.geometry_invisible += 1;
+            }
             continue;
+        }
+        if retest {
+            stats.decisions.retested += 1;
         }
         pending.push(Pending {
             object: o,
+            retest,
             misses: 0,
-            rng: Pcg64::seed_from_u64(mix(seed, o as u64)),
+            rng: Pcg64::seed_from_u64(mix(if retest { retest_seed } else { seed }, o as u64)),
             sampler: AdaptiveSampler::new(cell),
             rejected: 0,
             done: false,
@@ -90,7 +129,13 @@ pub(super) fn visible_set(
         owner.clear();
         for (k, p) in pending.iter_mut().enumerate() {
             let mut drawn = 0;
-            while drawn < batch {
+            // A retest needs no more than its budget.
+            let want = if p.retest {
+                batch.min(params.retest_rays.saturating_sub(p.misses))
+            } else {
+                batch
+            };
+            while drawn < want {
                 match p.sampler.draw(ctx.scene, cell, p.object, &mut p.rng) {
                     Some(r) => {
                         rays.push(r);
@@ -123,11 +168,21 @@ pub(super) fn visible_set(
                     continue;
                 }
                 if hit {
-                    stats.decisions.proven_by_hit += 1;
+                    if p.retest {
+                        stats.decisions.retest_found += 1;
+                    } else {
+                        stats.decisions.proven_by_hit += 1;
+                    }
                     p.done = true;
                     continue;
                 }
                 p.misses += 1;
+                if p.retest {
+                    // The ancestor's full test stands unless a retest ray
+                    // hits.
+                    p.done = p.misses >= params.retest_rays;
+                    continue;
+                }
                 let (stop, decision) = ctx.misses_decision;
                 match decision {
                     _ if p.misses < stop => {}
@@ -135,6 +190,7 @@ pub(super) fn visible_set(
                     Decision::Undecided => unreachable!("the test always ends"),
                     Decision::Invisible => {
                         stats.decisions.sprt_invisible += 1;
+                        rejected.insert(p.object);
                         p.done = true;
                     }
                     Decision::Visible | Decision::CapReached => {
@@ -149,7 +205,15 @@ pub(super) fn visible_set(
             }
             if set.contains(p.object) {
                 // Proven by another object's ray.
-                stats.decisions.proven_by_hit += 1;
+                if p.retest {
+                    stats.decisions.retest_found += 1;
+                } else {
+                    stats.decisions.proven_by_hit += 1;
+                }
+                p.done = true;
+            } else if p.retest && (p.rejected > params.rejection_budget || p.sampler.hopeless()) {
+                // Out of this leaf's directions, nearly: the ancestor's
+                // test stands.
                 p.done = true;
             } else if p.rejected > params.rejection_budget || p.sampler.hopeless() {
                 stats.decisions.rejection_kept += 1;
@@ -160,5 +224,7 @@ pub(super) fn visible_set(
         pending.retain(|p| !p.done);
         batch = (batch * 2).min(256);
     }
-    set
+    // An object the SPRT dropped may have been hit by a later ray.
+    rejected.subtract(&set);
+    (set, rejected)
 }

@@ -129,14 +129,17 @@ impl Built {
     }
 }
 
-/// Builds the subtree of `cell`, whose candidates are `candidates` and
+/// Builds the subtree of `cell`, whose candidates are `candidates`, whose
+/// ancestors' tests called `dropped` invisible (a leaf retests them), and
 /// whose cache so far is `cache` (rays inherited from the parent).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn build_node(
     ctx: &Ctx,
     cell: Cell,
     state: NodeState,
     seed: u64,
     candidates: &ObjectSet,
+    dropped: &ObjectSet,
     mut cache: Vec<CachedRay>,
     stats: &mut BuildStats,
 ) -> Built {
@@ -189,11 +192,28 @@ pub(super) fn build_node(
         }
         within
     });
-    let set = builder_leaf::visible_set(ctx, &cell, candidates, proven, seed, min_misses, stats);
+    let no_retest = ObjectSet::new(candidates.capacity());
+    let retest = if split.is_none() && params.retest_rays > 0 {
+        dropped
+    } else {
+        &no_retest
+    };
+    let tests = builder_leaf::Tests {
+        candidates,
+        retest,
+        proven,
+        min_misses,
+    };
+    let (set, rejected) = builder_leaf::visible_set(ctx, &cell, tests, seed, stats);
     let Some((dim, code)) = split else {
         ctx.finished(&cell);
         return Built::Leaf(set);
     };
+    // What the children's leaves retest: what was dropped above or here,
+    // less what this cell's rays proved.
+    let mut child_dropped = dropped.clone();
+    child_dropped.union_with(&rejected);
+    child_dropped.subtract(&set);
 
     let value = grid_value(cell.lo[dim], cell.hi[dim], code, params.grid_bits);
     let (below_cell, above_cell) = cell.split(dim, value);
@@ -219,6 +239,7 @@ pub(super) fn build_node(
                 child_state,
                 mix(seed, 1),
                 &set,
+                &child_dropped,
                 below_cache,
                 &mut below_stats,
             )
@@ -230,6 +251,7 @@ pub(super) fn build_node(
                 child_state,
                 mix(seed, 2),
                 &set,
+                &child_dropped,
                 above_cache,
                 &mut above_stats,
             )

@@ -95,6 +95,12 @@ pub struct BuildParams {
     /// object and cell, after which the object is kept as visible
     /// undecided.
     pub rejection_budget: u32,
+    /// Object samples with which a leaf retests each object that an
+    /// ancestor's test called invisible (0: no retest). An object seen from
+    /// a small part of a big cell falls under the test's threshold there,
+    /// and is lost to every cell below it unless retested where its
+    /// visible fraction is large: in the leaves.
+    pub retest_rays: u32,
     /// The positions to build for, in the scene's local coordinates
     /// ([`Scene::frame`]; the world's for a scene near the origin); `None`
     /// = the scene's bounding box.
@@ -134,6 +140,7 @@ impl Default for BuildParams {
             angular_candidates: 3,
             grid_bits: 10,
             rejection_budget: 4096,
+            retest_rays: 16,
             view_box: None,
             view_grow: 0.0,
             seed: 1,
@@ -228,7 +235,7 @@ impl BuildParams {
             expected: expected.to_owned(),
             value: value.to_string(),
         };
-        let counts: [(&'static str, u64, std::ops::RangeInclusive<u64>); 5] = [
+        let counts: [(&'static str, u64, std::ops::RangeInclusive<u64>); 6] = [
             (
                 "internal_miss_factor",
                 self.internal_miss_factor.into(),
@@ -242,6 +249,7 @@ impl BuildParams {
                 1..=10_000_000,
             ),
             ("max_nodes", self.max_nodes, 1..=u32::MAX as u64),
+            ("retest_rays", self.retest_rays.into(), 0..=100_000),
         ];
         for (name, value, range) in counts {
             if !range.contains(&value) {
@@ -338,6 +346,7 @@ impl BuildParams {
             format!("angular_candidates={}", self.angular_candidates),
             format!("grid_bits={}", self.grid_bits),
             format!("rejection_budget={}", self.rejection_budget),
+            format!("retest_rays={}", self.retest_rays),
         ];
         lines.join("\n") + "\n"
     }
@@ -400,6 +409,11 @@ pub struct Decisions {
     /// Almost every sample was rejected (rejection budget spent): kept as
     /// visible.
     pub rejection_kept: u64,
+    /// Objects a leaf retested because an ancestor called them invisible
+    /// ([`BuildParams::retest_rays`]).
+    pub retested: u64,
+    /// Of those, the ones a retest ray hit: visible in the leaf after all.
+    pub retest_found: u64,
 }
 
 impl Decisions {
@@ -409,6 +423,8 @@ impl Decisions {
         self.cap_reached += o.cap_reached;
         self.geometry_invisible += o.geometry_invisible;
         self.rejection_kept += o.rejection_kept;
+        self.retested += o.retested;
+        self.retest_found += o.retest_found;
     }
 }
 
@@ -503,6 +519,7 @@ pub fn build(
         builder_node::NodeState::ROOT,
         params.seed,
         &candidates,
+        &ObjectSet::new(scene.objects().len()),
         Vec::new(),
         &mut stats,
     );

@@ -121,6 +121,12 @@ pub struct BuildArgs {
     /// visible [1 to 10,000,000].
     #[arg(long, default_value_t = BuildParams::default().rejection_budget, value_parser = clap::value_parser!(u32).range(1..=10_000_000))]
     rejection_budget: u32,
+    /// Samples with which each leaf retests every object an ancestor
+    /// called invisible (an object seen from a small part of a big cell is
+    /// found in the leaf where it is well visible) [0 = no retest, to
+    /// 100,000].
+    #[arg(long, default_value_t = BuildParams::default().retest_rays, value_parser = clap::value_parser!(u32).range(0..=100_000))]
+    retest_rays: u32,
     /// After building, render this many random views and report the pixel
     /// error [0 to 1,000,000].
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
@@ -161,6 +167,7 @@ impl BuildArgs {
             angular_candidates: self.angular_candidates,
             grid_bits: self.grid_bits,
             rejection_budget: self.rejection_budget,
+            retest_rays: self.retest_rays,
             view_box: None,
             view_grow: self.grow,
             seed: self.seed,
@@ -209,6 +216,8 @@ struct DecisionReport {
     cap_reached: u64,
     geometry_invisible: u64,
     rejection_kept: u64,
+    retested: u64,
+    retest_found: u64,
 }
 
 #[derive(Serialize)]
@@ -397,6 +406,8 @@ fn build_report(
             cap_reached: d.cap_reached,
             geometry_invisible: d.geometry_invisible,
             rejection_kept: d.rejection_kept,
+            retested: d.retested,
+            retest_found: d.retest_found,
         },
         seconds: StageSeconds {
             load,
@@ -448,8 +459,13 @@ fn print_build(out: &mut impl Write, r: &BuildReport) -> io::Result<()> {
     )?;
     writeln!(
         out,
-        "                   {} kept at the ray cap, {} kept after rejections",
+        "                   {} kept at the ray cap, {} kept after rejections,",
         d.cap_reached, d.rejection_kept
+    )?;
+    writeln!(
+        out,
+        "                   {} retested in leaves, {} of them found visible",
+        d.retested, d.retest_found
     )?;
     let s = &r.seconds;
     writeln!(
