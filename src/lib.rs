@@ -60,11 +60,11 @@
 //! # Ok::<(), vis5d::codec::CodecError>(())
 //! ```
 //!
-//! Positions are world coordinates. A scene far from the origin (a model
-//! in UTM coordinates) is built in a local frame whose origin the file
-//! keeps ([`Pvs::frame`](query::Pvs::frame)); an engine that already draws
-//! relative to an origin of its own passes local positions to
-//! [`query_view_local`](query::Pvs::query_view_local).
+//! Positions are world coordinates for a scene modelled around the
+//! origin. A scene far from it (a model in UTM coordinates) is built in a
+//! local frame whose origin the file keeps ([`Pvs::frame`](query::Pvs::frame)):
+//! pass positions relative to that origin, or f64 world positions to
+//! [`query_view_world`](query::Pvs::query_view_world).
 //!
 //! ## Modules
 //!

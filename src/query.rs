@@ -19,12 +19,16 @@
 //! view box the tree was built for get every object (nothing was sampled
 //! there, so nothing may be culled).
 //!
-//! Positions are world coordinates. A tree built for a scene far from the
-//! origin is stored in the scene's local frame ([`crate::geom::Frame`]);
-//! [`Pvs::query_range`] and [`Pvs::query_view`] convert, rounding the box
-//! of positions outwards, and the `_local` forms take local coordinates
-//! (what a renderer that already draws relative to the frame's origin
-//! holds, and what vis5d's own tools use).
+//! Positions are in the tree's frame ([`Pvs::frame`],
+//! [`crate::geom::Frame`]): for a scene modelled around the origin (within
+//! 4 of its diagonals of it) that is world coordinates, unchanged. A scene
+//! far from the origin (a city in UTM coordinates) is built relative to an
+//! origin near it, because f32 world coordinates cannot resolve it (at
+//! 4.6e6 they step by 0.5); [`Pvs::query_view`] and [`Pvs::query_range`]
+//! then take positions relative to [`Pvs::frame`]'s origin (what a
+//! renderer drawing such a scene in f32 holds anyway), and
+//! [`Pvs::query_view_world`] and [`Pvs::query_range_world`] take f64 world
+//! positions and convert them, rounding the box of positions outwards.
 
 use std::f32::consts::PI;
 use std::path::{Path, PathBuf};
@@ -559,26 +563,26 @@ impl Pvs {
         self.set_words(i)
     }
 
-    /// The objects visible from some ray with origin in `positions`
-    /// (world coordinates) and direction angles in `theta` x `phi` (closed
-    /// ranges, radians; theta may wrap: `theta.0 > theta.1` means
-    /// `[theta.0, pi] u [-pi, theta.1]`), written into `out` (cleared
-    /// first).
-    pub fn query_range(
+    /// As [`Pvs::query_range`], with the box of positions `[min, max]` in
+    /// f64 world coordinates (rounded outwards into the tree's frame).
+    pub fn query_range_world(
         &self,
-        positions: &Aabb,
+        min: DVec3,
+        max: DVec3,
         theta: (f32, f32),
         phi: (f32, f32),
         out: &mut ObjectSet,
     ) {
-        let local = self
-            .frame
-            .box_to_local(positions.min.as_dvec3(), positions.max.as_dvec3());
-        self.query_range_local(&local, theta, phi, out);
+        let local = self.frame.box_to_local(min, max);
+        self.query_range(&local, theta, phi, out);
     }
 
-    /// As [`Pvs::query_range`], with `positions` in local coordinates.
-    pub fn query_range_local(
+    /// The objects visible from some ray with origin in `positions` (the
+    /// tree's frame: see the module docs) and direction angles in `theta`
+    /// x `phi` (closed ranges, radians; theta may wrap: `theta.0 >
+    /// theta.1` means `[theta.0, pi] u [-pi, theta.1]`), written into
+    /// `out` (cleared first).
+    pub fn query_range(
         &self,
         positions: &Aabb,
         theta: (f32, f32),
@@ -594,26 +598,31 @@ impl Pvs {
         }
     }
 
-    /// The objects visible from `view` (its position in world
-    /// coordinates), written into `out` (cleared first): the tree's answer
-    /// for the view's directions, culled to its frustum with the objects'
-    /// bounds ([`Frustum`]; a version 1 file has none and is not culled).
+    /// The objects visible from `view` (its position in the tree's frame:
+    /// see the module docs), written into `out` (cleared first): the
+    /// tree's answer for the view's directions, culled to its frustum with
+    /// the objects' bounds ([`Frustum`]; a version 1 file has none and is
+    /// not culled).
     pub fn query_view(&self, view: &View, out: &mut ObjectSet) {
-        let p = view.position.as_dvec3();
-        let r = DVec3::splat(f64::from(view.radius.max(0.0)));
-        let positions = self.frame.box_to_local(p - r, p + r);
-        self.query_view_from(&positions, view, out);
-    }
-
-    /// As [`Pvs::query_view`], with `view`'s position in local
-    /// coordinates.
-    pub fn query_view_local(&self, view: &View, out: &mut ObjectSet) {
         let r = view.radius.max(0.0);
         let positions = Aabb::new(
             view.position - Vec3::splat(r),
             view.position + Vec3::splat(r),
         );
         self.query_view_from(&positions, view, out);
+    }
+
+    /// As [`Pvs::query_view`], with the eye at `eye` in f64 world
+    /// coordinates (`view.position` is not used): the box of eyes
+    /// (`view.radius` around it) is rounded outwards into the tree's frame.
+    pub fn query_view_world(&self, eye: DVec3, view: &View, out: &mut ObjectSet) {
+        let r = DVec3::splat(f64::from(view.radius.max(0.0)));
+        let positions = self.frame.box_to_local(eye - r, eye + r);
+        let local = View {
+            position: self.frame.to_local(eye),
+            ..*view
+        };
+        self.query_view_from(&positions, &local, out);
     }
 
     /// The objects visible from the local `positions` in `view`'s frustum.

@@ -289,7 +289,14 @@ pub fn run(args: &BuildArgs) -> Result<()> {
     }
     let (scene, load_seconds) = load_scene(&args.file)?;
     if let Some(b) = args.view_box {
-        params.view_box = Some(b.to_local(&scene.frame()));
+        let local = b.to_local(&scene.frame());
+        if !(local.min.is_finite() && local.max.is_finite()) {
+            bail!(
+                "--view-box: the box reaches too far from the scene (its coordinates relative \
+                 to the scene must fit in f32, about 3e38)"
+            );
+        }
+        params.view_box = Some(local);
         params
             .validate()
             .map_err(|e| anyhow::anyhow!("--view-box: {e} (in the scene's local frame)"))?;

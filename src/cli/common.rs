@@ -334,7 +334,14 @@ impl Serialize for World {
         if self.0.is_identity() {
             self.1.to_array().serialize(s)
         } else {
-            self.0.to_world(self.1).to_array().serialize(s)
+            // The short decimals of the text form (500123.7, not
+            // 500123.69999980927), as numbers.
+            let text = self.0.world_text(self.1);
+            let mut w = self.0.to_world(self.1).to_array();
+            for (c, t) in w.iter_mut().zip(text.split(',')) {
+                *c = t.parse().unwrap_or(*c);
+            }
+            w.serialize(s)
         }
     }
 }

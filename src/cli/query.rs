@@ -98,7 +98,7 @@ pub fn run(args: &QueryArgs) -> Result<()> {
         let r = vis5d::query::frustum_angles(v.dir, v.up, v.fov_x, v.fov_y);
         acc.clear();
         for &(t0, t1, p0, p1) in r.boxes() {
-            pvs.query_range_local(&positions, (t0, t1), (p0, p1), &mut set);
+            pvs.query_range(&positions, (t0, t1), (p0, p1), &mut set);
             acc.union_with(&set);
         }
         std::mem::swap(&mut set, &mut acc);

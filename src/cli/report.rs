@@ -158,7 +158,16 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     let views: Vec<View> = match path_views {
         // The camera path is in world coordinates; the report works in the
         // scene's local frame.
-        Some(views) => views.iter().map(|v| v.local(&scene.frame())).collect(),
+        Some(views) => {
+            let local: Vec<View> = views.iter().map(|v| v.local(&scene.frame())).collect();
+            if let Some(i) = local.iter().position(|v| !v.position.is_finite()) {
+                bail!(
+                    "view {i}: its position is too far from the scene (relative to it, \
+                     coordinates must fit in f32, about 3e38)"
+                );
+            }
+            local
+        }
         None => random_views(
             &pvs.root_cell().space(),
             args.random as usize,

@@ -13,6 +13,8 @@ use vis5d::query::View;
 use vis5d::report::{Experiment, GridCost, MethodSummary, ReportParams};
 use vis5d::scene::Scene;
 
+use crate::common::World;
+
 #[derive(Serialize)]
 struct ViewJson {
     objects: usize,
@@ -38,7 +40,8 @@ struct MethodJson {
 
 #[derive(Serialize)]
 struct TruthJson {
-    pos: [f32; 3],
+    /// World coordinates.
+    pos: World,
     dir: [f32; 3],
     fov_degrees: f32,
     seen_objects: usize,
@@ -139,7 +142,7 @@ pub fn write(dir: &Path, page: &Page) -> Result<Vec<(&'static str, MethodSummary
             .iter()
             .zip(&e.truths)
             .map(|(v, t)| TruthJson {
-                pos: v.position.to_array(),
+                pos: World(scene.frame(), v.position),
                 dir: v.dir.to_array(),
                 fov_degrees: v.fov_y.to_degrees(),
                 seen_objects: t.seen.len(),

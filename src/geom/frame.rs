@@ -45,9 +45,13 @@ impl Frame {
     /// <= max`): the identity when the scene's centre lies within
     /// [`FAR_DIAGONALS`] diagonals of the origin (every scene modelled
     /// around it: its files and coordinates stay as they were), else an
-    /// origin at the centre rounded to a multiple of the largest power of
-    /// two not above the diagonal (so local coordinates stay within one
-    /// diagonal of zero, and the origin is a short number).
+    /// origin near the centre on a multiple of the largest power of two
+    /// not above the diagonal, `step`: `floor(centre / step + 1/3) step`
+    /// (local coordinates stay within about a diagonal of zero, and the
+    /// origin is a short number). The third keeps the rule's jumps away
+    /// from round centres, which decimal coordinates often have: a scene
+    /// written as text and read back, its coordinates off by a rounding,
+    /// gets the same origin.
     pub fn for_bounds(min: DVec3, max: DVec3) -> Frame {
         let centre = (min + max) * 0.5;
         let diagonal = (max - min).length();
@@ -55,9 +59,9 @@ impl Frame {
             return Frame::IDENTITY;
         }
         let step = 2f64.powi(diagonal.log2().floor() as i32);
-        Frame {
-            origin: (centre / step).round() * step,
-        }
+        // `+ 0.0` makes a -0.0 coordinate +0.0 (it hashes differently).
+        let origin = (centre / step + DVec3::splat(1.0 / 3.0)).floor() * step + DVec3::ZERO;
+        Frame { origin }
     }
 
     /// Whether local and world coordinates are the same.
@@ -146,6 +150,26 @@ mod tests {
         let diagonal = (max - min).length();
         let step = 16.0; // the largest power of two not above 16.4
         assert_eq!(f.origin % step, DVec3::ZERO, "{f:?}");
+        // Round centres are away from the rule's jumps: (40, 44, -2) with
+        // step 8 stays put when the bounds move by a rounding.
+        let (lo, hi) = (DVec3::new(35.0, 39.0, -7.0), DVec3::new(45.0, 49.0, 3.0));
+        let g = Frame::for_bounds(lo + 400.0, hi + 400.0);
+        for e in [1e-9, -1e-9] {
+            assert_eq!(Frame::for_bounds(lo + 400.0 + e, hi + 400.0 + e), g);
+        }
+        // No negative zero.
+        let z = Frame::for_bounds(
+            DVec3::new(1e6, -1.0, -1.5),
+            DVec3::new(1e6 + 1.0, 1.0, 1.4999),
+        );
+        assert!(
+            z.origin
+                .to_array()
+                .iter()
+                .all(|c| !c.is_sign_negative() || *c != 0.0),
+            "{z:?}"
+        );
+        assert!(z.origin.z.is_sign_positive(), "{z:?}");
         for p in [min, max] {
             let local = f.to_local(p);
             assert!(f64::from(local.abs().max_element()) <= diagonal, "{local}");

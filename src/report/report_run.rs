@@ -310,7 +310,7 @@ pub fn run(
         // The tree's answer as a user gets it: the leaf sets of the
         // view's directions, culled to its frustum by the query.
         let start = Instant::now();
-        pvs.query_view_local(view, &mut set);
+        pvs.query_view(view, &mut set);
         let s = start.elapsed().as_secs_f64();
         run_of(&mut runs, Method::Tree).record(scene, &t, &set, s);
 

@@ -58,6 +58,7 @@ pub(super) fn load_gltf(
             doc.nodes().filter(|nd| !is_child[nd.index()]).collect()
         }
     };
+    let precise = node_matrices_f64(bytes, n);
     let mut stack: Vec<(gltf::Node, DMat4)> =
         roots.into_iter().map(|r| (r, DMat4::IDENTITY)).collect();
     while let Some((node, parent)) = stack.pop() {
@@ -67,8 +68,13 @@ pub(super) fn load_gltf(
                 node.index()
             )));
         }
-        let local = node.transform().matrix().map(|col| col.map(f64::from));
-        let m = parent * DMat4::from_cols_array_2d(&local);
+        let local = match &precise {
+            Some(matrices) => matrices[node.index()],
+            None => {
+                DMat4::from_cols_array_2d(&node.transform().matrix().map(|col| col.map(f64::from)))
+            }
+        };
+        let m = parent * local;
         world[node.index()] = Some(m);
         stack.extend(node.children().map(|c| (c, m)));
     }
@@ -303,6 +309,58 @@ fn load_buffers(
 /// names without a bounds check and panics on a missing one (gltf-json
 /// 1.4.1, `mesh.rs`): that reference is checked first, then the document
 /// is validated with gltf-json's checks.
+/// The local matrix of every node, read from the JSON in f64: gltf-json
+/// parses `translation`, `rotation`, `scale` and `matrix` as f32, which
+/// rounds a georeferenced translation (4,649,876.3 becomes 4,649,876.5).
+/// `None` when the JSON cannot be read this way (then the f32 values
+/// serve; the document has been validated by the time this matters).
+fn node_matrices_f64(bytes: &[u8], nodes: usize) -> Option<Vec<DMat4>> {
+    let json = if bytes.starts_with(b"glTF") {
+        // GLB: a 12-byte header, then the JSON chunk (length, type, data).
+        let len = u32::from_le_bytes(bytes.get(12..16)?.try_into().ok()?) as usize;
+        if bytes.get(16..20)? != b"JSON" {
+            return None;
+        }
+        bytes.get(20..20usize.checked_add(len)?)?
+    } else {
+        bytes
+    };
+    let doc: serde_json::Value = serde_json::from_slice(json).ok()?;
+    let list = match doc.get("nodes") {
+        Some(v) => v.as_array()?.as_slice(),
+        None => &[],
+    };
+    if list.len() != nodes {
+        return None;
+    }
+    let numbers = |node: &serde_json::Value, key: &str, want: usize| -> Option<Option<Vec<f64>>> {
+        let Some(v) = node.get(key) else {
+            return Some(None);
+        };
+        let v: Vec<f64> = v
+            .as_array()?
+            .iter()
+            .map(|x| x.as_f64())
+            .collect::<Option<_>>()?;
+        (v.len() == want && v.iter().all(|x| x.is_finite())).then_some(Some(v))
+    };
+    list.iter()
+        .map(|node| {
+            if let Some(m) = numbers(node, "matrix", 16)? {
+                return Some(DMat4::from_cols_slice(&m));
+            }
+            let t = numbers(node, "translation", 3)?.unwrap_or(vec![0.0; 3]);
+            let r = numbers(node, "rotation", 4)?.unwrap_or(vec![0.0, 0.0, 0.0, 1.0]);
+            let s = numbers(node, "scale", 3)?.unwrap_or(vec![1.0; 3]);
+            Some(DMat4::from_scale_rotation_translation(
+                DVec3::from_slice(&s),
+                glam::DQuat::from_xyzw(r[0], r[1], r[2], r[3]),
+                DVec3::from_slice(&t),
+            ))
+        })
+        .collect()
+}
+
 fn parse(bytes: &[u8]) -> Result<gltf::Gltf, String> {
     use gltf::json::validation::Validate;
     let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| e.to_string())?;

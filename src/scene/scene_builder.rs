@@ -103,13 +103,19 @@ impl SceneBuilder {
             skipped_non_triangles: self.skipped_non_triangles,
             ..LoadReport::default()
         };
+        // The frame is chosen from the triangles of non-zero area: a stray
+        // zero-area triangle at (0, 0, 0) in a georeferenced model must not
+        // make it look like a scene around the origin (a review found one
+        // that did: 1,463 triangles of 3,196 then rounded to zero area).
         let (mut min, mut max) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-        for v in self.world.iter().flatten() {
-            min = min.min(*v);
-            max = max.max(*v);
+        for t in self.world.iter().filter(|t| !degenerate_f64(t)) {
+            for v in t {
+                min = min.min(*v);
+                max = max.max(*v);
+            }
         }
         // A scene of zero-area triangles only is empty, whatever its size.
-        if !self.world.iter().any(|t| !degenerate_f64(t)) {
+        if min.x > max.x {
             return Err(SceneError::Empty {
                 path: path.to_owned(),
                 dropped: self.world.len(),
@@ -122,7 +128,9 @@ impl SceneBuilder {
                 diagonal,
             });
         }
-        let distance = ((min + max) * 0.5).length();
+        // The largest coordinate of the centre: no overflow where the
+        // length would.
+        let distance = ((min + max) * 0.5).abs().max_element();
         if distance > MAX_DIAGONALS * diagonal {
             return Err(SceneError::FarFromOrigin {
                 path: path.to_owned(),
@@ -241,11 +249,37 @@ mod tests {
             .unwrap();
         let s = b.finish(Path::new("part.obj")).unwrap();
         s.validate().unwrap();
-        // The centre (1e6 + 0.5, 0.5, 0) rounded to whole metres (the
+        // Near the centre (1e6 + 0.5, 0.5, 0) on whole metres (the
         // largest power of two not above the diagonal, 1.41).
-        assert_eq!(s.frame().origin, DVec3::new(1_000_001.0, 1.0, 0.0));
+        assert_eq!(s.frame().origin, DVec3::new(1_000_000.0, 0.0, 0.0));
         let b = s.bounds();
         assert!(b.min.abs().max(b.max.abs()).max_element() <= 1.0, "{b:?}");
+    }
+
+    #[test]
+    fn zero_area_triangles_do_not_choose_the_frame() {
+        // A georeferenced part and a stray zero-area triangle at the
+        // origin: the frame is the part's.
+        let o = DVec3::new(500_123.7, 4_649_876.3, 12.0);
+        let mut b = SceneBuilder::new(SceneFormat::Procedural);
+        b.begin_object("part");
+        b.push_triangle_f64([o, o + DVec3::X, o + DVec3::Y])
+            .unwrap();
+        b.begin_object("junk");
+        b.push_triangle_f64([DVec3::ZERO; 3]).unwrap();
+        let s = b.finish(Path::new("geo.obj")).unwrap();
+        assert!(
+            (s.frame().origin - o).abs().max_element() < 2.0,
+            "{:?}",
+            s.frame()
+        );
+        assert_eq!(s.report().dropped_empty_objects, ["junk"]);
+        // Huge corners are not mistaken for a zero area: the size is refused.
+        let mut b = SceneBuilder::new(SceneFormat::Procedural);
+        b.push_triangle_f64([DVec3::ZERO, DVec3::X * 1e160, DVec3::Y * 1e160])
+            .unwrap();
+        let e = b.finish(Path::new("huge.obj")).unwrap_err();
+        assert!(matches!(e, SceneError::Extent { .. }), "{e}");
     }
 
     #[test]

@@ -601,7 +601,7 @@ fn any_accepted_scene_builds_a_tree_that_decodes() {
         assert_eq!(back.tree, tree, "case {case}");
         let pvs = Pvs::from_bytes(&bytes).unwrap();
         let mut out = pvs.new_set();
-        pvs.query_view_local(
+        pvs.query_view(
             &View::square(scene.bounds().center(), Vec3::X, 90.0),
             &mut out,
         );
@@ -609,4 +609,46 @@ fn any_accepted_scene_builds_a_tree_that_decodes() {
     assert!(accepted >= 40, "{accepted} accepted, {refused} refused");
     eprintln!("{accepted} accepted, {refused} refused, {splits} trees split");
     assert!(splits >= accepted / 2, "{splits} of {accepted} trees split");
+}
+
+/// The f64 world entry points of a far tree answer what the tree answers
+/// at the same local place (a first version took f32 world positions,
+/// which at 4.6e6 move the eye by up to 0.25 and missed walls).
+#[test]
+fn far_trees_take_f64_world_positions() {
+    use glam::DVec3;
+    use vis5d::builder::{BuildParams, build, to_file};
+    use vis5d::query::Pvs;
+    use vis5d::scene::procedural::{SceneKind, generate};
+
+    let near = generate(SceneKind::Apartment, 1, 1);
+    let offset = DVec3::new(500_123.7, 4_649_876.3, 250.0);
+    let far = near
+        .translated(offset, Path::new("far.obj"))
+        .expect("within the limits");
+    let tracer = vis5d::trace::Tracer::new(&far);
+    let params = BuildParams {
+        max_depth: 6,
+        ..BuildParams::default()
+    };
+    let (tree, _) = build(&far, &tracer, &params, &|_| {}).unwrap();
+    let pvs = Pvs::from_bytes(&vis5d::codec::write_file(&to_file(
+        &far, tree, &params, None,
+    )))
+    .unwrap();
+    let frame = pvs.frame();
+    assert_eq!(frame, far.frame());
+    let (mut a, mut b) = (pvs.new_set(), pvs.new_set());
+    let views = vis5d::render::random_views(&far.bounds(), 50, 90.0, 9);
+    let mut equal = 0;
+    for v in &views {
+        // The eye in world coordinates, f64, exactly as a user holds it.
+        let eye = frame.to_world(v.position);
+        pvs.query_view_world(eye, v, &mut a);
+        pvs.query_view(v, &mut b);
+        assert!(b.is_subset(&a), "{v:?}");
+        equal += usize::from(a == b);
+        assert!(a.count() < pvs.object_count(), "{v:?}: nothing culled");
+    }
+    assert!(equal >= 45, "{equal} of 50 equal");
 }

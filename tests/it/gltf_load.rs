@@ -480,8 +480,9 @@ fn fuzz_corpus_loads_or_is_refused_without_panicking() {
 }
 
 /// A georeferenced glTF puts its large offset in a node's translation:
-/// composed in f64 and held in a local frame, the mesh keeps the precision
-/// of its f32 positions (in f32 world coordinates, 4.6e6 steps by 0.5).
+/// read and composed in f64 and held in a local frame, the mesh keeps the
+/// precision of its f32 positions (in f32, 4,649,876.3 is 4,649,876.5; a
+/// review found gltf-json's f32 translation moved the model so).
 #[test]
 fn a_georeferenced_node_translation_keeps_the_mesh_precise() {
     let dir = tempfile::tempdir().unwrap();
@@ -489,10 +490,18 @@ fn a_georeferenced_node_translation_keeps_the_mesh_precise() {
     for p in &mut fine.positions {
         *p = p.map(|c| c * 0.1); // a part 10 cm across
     }
-    let offset = [500_123.25, 4_649_876.5, 12.0];
-    let nodes = json!([{"name": "part", "mesh": 0, "translation": offset}]);
-    let (doc, bin) = document(&[fine], nodes, json!([{"nodes": [0]}]));
-    let s = scene::load(write_embedded(&dir, "geo.gltf", doc, &bin)).unwrap();
+    // Nested: the offset split between a parent and its child, as
+    // exporters do.
+    let nodes = json!([
+        {"name": "site", "translation": [500_000.0, 4_649_000.0, 0.0], "children": [1]},
+        {"name": "part", "mesh": 0, "translation": [123.7, 876.3, 12.1]}
+    ]);
+    let (mut doc, bin) = document(&[fine], nodes, json!([{"nodes": [0]}]));
+    let s = scene::load(write_embedded(&dir, "geo.gltf", doc.clone(), &bin)).unwrap();
+    doc["buffers"][0]["byteLength"] = json!(bin.len());
+    let glb = scene::load(write_glb(&dir, "geo.glb", &doc, &bin)).unwrap();
+    assert_eq!(glb.triangles(), s.triangles());
+    assert_eq!(glb.frame(), s.frame());
     s.validate().unwrap();
     let frame = s.frame();
     assert!(!frame.is_identity());
@@ -505,9 +514,9 @@ fn a_georeferenced_node_translation_keeps_the_mesh_precise() {
         for (v, &i) in t.iter().zip(ix) {
             let want =
                 glam::DVec3::from_array(local.positions[i as usize].map(|c| f64::from(c * 0.1)))
-                    + glam::DVec3::from_array(offset);
+                    + glam::DVec3::new(500_123.7, 4_649_876.3, 12.1);
             let got = frame.to_world(*v);
-            assert!((got - want).length() < 1e-8, "{got} vs {want}");
+            assert!((got - want).length() < 1e-6, "{got} vs {want}");
         }
     }
 }
