@@ -22,7 +22,8 @@
 //!   almost all rejected ([`AdaptiveSampler::hopeless`], or more than
 //!   `rejection_budget` rejected): conservative.
 //!
-//! A leaf also *retests* the objects an ancestor called invisible
+//! A leaf also *retests* the objects an ancestor called invisible that lie
+//! near an object its cached rays hit
 //! ([`BuildParams::retest_rays`](super::BuildParams::retest_rays) samples
 //! each, from a stream of their own): an object seen from a small part of
 //! a big cell falls under the SPRT's threshold there, but in the leaf that

@@ -24,6 +24,9 @@ pub(super) struct Ctx<'a> {
     pub min_width: [f32; DIMS],
     /// Triangles per object.
     pub triangles: Vec<u64>,
+    /// Per object, the objects near it (`super::neighbours`): a leaf
+    /// retests a dropped object only near one its rays hit.
+    pub neighbours: Vec<Vec<u32>>,
     pub root_measure: f64,
     /// Misses in a row an internal node needs before an object is
     /// invisible (see [`BuildParams::internal_miss_factor`]).
@@ -192,12 +195,21 @@ pub(super) fn build_node(
         }
         within
     });
-    let no_retest = ObjectSet::new(candidates.capacity());
-    let retest = if split.is_none() && params.retest_rays > 0 {
-        dropped
-    } else {
-        &no_retest
-    };
+    // A leaf retests the dropped objects near those its rays hit: where
+    // rays end is where a small visible part of a dropped object would
+    // be, and it bounds the work (a cell of a block of apartments has
+    // dropped the thousands of objects of the others).
+    let mut retest = ObjectSet::new(candidates.capacity());
+    if split.is_none() && params.retest_rays > 0 && !dropped.is_empty() {
+        for o in proven.iter() {
+            for &n in &ctx.neighbours[o] {
+                if dropped.contains(n as usize) {
+                    retest.insert(n as usize);
+                }
+            }
+        }
+    }
+    let retest = &retest;
     let tests = builder_leaf::Tests {
         candidates,
         retest,

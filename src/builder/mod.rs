@@ -96,10 +96,13 @@ pub struct BuildParams {
     /// undecided.
     pub rejection_budget: u32,
     /// Object samples with which a leaf retests each object that an
-    /// ancestor's test called invisible (0: no retest). An object seen from
-    /// a small part of a big cell falls under the test's threshold there,
-    /// and is lost to every cell below it unless retested where its
-    /// visible fraction is large: in the leaves.
+    /// ancestor's test called invisible and that lies near an object the
+    /// leaf's rays hit (0: no retest). An object seen from a small part of
+    /// a big cell falls under the test's threshold there, and is lost to
+    /// every cell below it unless retested where its visible fraction is
+    /// large: in the leaves. "Near": the objects' boxes, each grown by half
+    /// its diagonal, overlap; it keeps a block of apartments from
+    /// retesting, in every leaf, the thousands of objects of the others.
     pub retest_rays: u32,
     /// The positions to build for, in the scene's local coordinates
     /// ([`Scene::frame`]; the world's for a scene near the origin); `None`
@@ -500,6 +503,11 @@ pub fn build(
             .iter()
             .map(|o| o.triangle_count() as u64)
             .collect(),
+        neighbours: if params.retest_rays > 0 {
+            neighbours(scene)
+        } else {
+            Vec::new()
+        },
         root_measure: root.measure(),
         misses_decision: params.sprt.misses_decision(),
         internal_min_misses: params
@@ -535,6 +543,60 @@ pub fn build(
     Ok((tree, stats))
 }
 
+/// Per object, the objects whose bounding boxes, each grown by half its
+/// diagonal, overlap its own grown box (itself excluded), in index order.
+/// Objects are binned on a grid over the scene so that the work grows with
+/// the pairs that are near, not with the square of the objects.
+pub(crate) fn neighbours(scene: &Scene) -> Vec<Vec<u32>> {
+    let grown: Vec<Aabb> = scene
+        .objects()
+        .iter()
+        .map(|o| o.bounds.expanded(0.5 * o.bounds.diagonal()))
+        .collect();
+    let n = grown.len();
+    let space = grown.iter().fold(Aabb::EMPTY, |u, b| u.union(b));
+    let side = ((n as f64).cbrt().ceil() as usize).clamp(1, 64);
+    let size = space.size().max(glam::Vec3::splat(f32::MIN_POSITIVE));
+    let cell_of = |p: glam::Vec3| {
+        let t = ((p - space.min) / size * side as f32).floor();
+        t.clamp(glam::Vec3::ZERO, glam::Vec3::splat((side - 1) as f32))
+            .as_uvec3()
+    };
+    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); side * side * side];
+    let index = |x: u32, y: u32, z: u32| (x as usize * side + y as usize) * side + z as usize;
+    for (i, b) in grown.iter().enumerate() {
+        let (lo, hi) = (cell_of(b.min), cell_of(b.max));
+        for x in lo.x..=hi.x {
+            for y in lo.y..=hi.y {
+                for z in lo.z..=hi.z {
+                    bins[index(x, y, z)].push(i as u32);
+                }
+            }
+        }
+    }
+    let overlap = |a: &Aabb, b: &Aabb| a.min.cmple(b.max).all() && b.min.cmple(a.max).all();
+    let mut out = vec![Vec::new(); n];
+    let mut seen = vec![u32::MAX; n];
+    for (i, b) in grown.iter().enumerate() {
+        let (lo, hi) = (cell_of(b.min), cell_of(b.max));
+        for x in lo.x..=hi.x {
+            for y in lo.y..=hi.y {
+                for z in lo.z..=hi.z {
+                    for &j in &bins[index(x, y, z)] {
+                        let ju = j as usize;
+                        if ju != i && seen[ju] != i as u32 && overlap(b, &grown[ju]) {
+                            seen[ju] = i as u32;
+                            out[i].push(j);
+                        }
+                    }
+                }
+            }
+        }
+        out[i].sort_unstable();
+    }
+    out
+}
+
 /// A 64-bit mix of two values (splitmix64 finaliser): seeds of the random
 /// streams of nodes and objects.
 pub(crate) fn mix(a: u64, b: u64) -> u64 {
@@ -542,4 +604,37 @@ pub(crate) fn mix(a: u64, b: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::procedural::{SceneKind, generate};
+
+    #[test]
+    fn neighbours_on_the_grid_are_the_pairs_of_overlapping_grown_boxes() {
+        for kind in [SceneKind::City, SceneKind::Machine] {
+            let scene = generate(kind, 3, 2);
+            let grown: Vec<Aabb> = scene
+                .objects()
+                .iter()
+                .map(|o| o.bounds.expanded(0.5 * o.bounds.diagonal()))
+                .collect();
+            let fast = neighbours(&scene);
+            for (i, a) in grown.iter().enumerate() {
+                let slow: Vec<u32> = (0..grown.len())
+                    .filter(|&j| {
+                        j != i && a.min.cmple(grown[j].max).all() && grown[j].min.cmple(a.max).all()
+                    })
+                    .map(|j| j as u32)
+                    .collect();
+                assert_eq!(fast[i], slow, "{kind} object {i}");
+            }
+            let pairs: usize = fast.iter().map(Vec::len).sum();
+            assert!(
+                pairs > 0 && pairs < grown.len() * grown.len() / 2,
+                "{pairs}"
+            );
+        }
+    }
 }
