@@ -153,23 +153,39 @@ impl AngularRanges {
 /// Built for a box of eye positions, it is the union of the frusta of
 /// every eye in the box (each plane moved back to the box's corner
 /// furthest behind it), so culling with it is conservative for all of
-/// them. When the view's frame is ill-defined (`up` along `dir`, the case
-/// [`frustum_angles`] answers with a cone) only the eye's plane culls;
-/// a field of view above 170 degrees culls nothing.
+/// them. A box is kept unless it is outside a plane by more than
+/// [`Frustum::ANGLE_SLACK`] times its distance from the eye (plus f32
+/// rounding): a renderer's own f32 frame may be rolled or tilted by that
+/// much. When the view's roll is ill-conditioned (`up` within
+/// [`Frustum::MIN_UP_ANGLE`] of `dir`, where a renderer's f32 cross
+/// product rolls its frame by up to 1e-5) only the eye's plane culls; a
+/// field of view above 170 degrees culls nothing.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frustum {
     /// `(n, d)`: a point `p` may be seen only where `n . p >= d`.
     planes: [(Vec3, f32); 5],
+    /// Per plane, the eye of the box it was moved back to.
+    eyes: [Vec3; 5],
     /// How many of `planes` are used.
     count: usize,
 }
 
 impl Frustum {
+    /// The angle (radians) by which a plane may be off without an object
+    /// near it being culled. A review found `render::Camera` rolled by
+    /// 6e-5 against the exact frame with `up` 1e-3 rad from `dir`.
+    pub const ANGLE_SLACK: f32 = 1e-4;
+
+    /// Below this angle (radians) between `up` and `dir`, the side planes
+    /// are not used.
+    pub const MIN_UP_ANGLE: f64 = 1e-2;
+
     /// The frustum of `view` from every eye in `eyes` (in the coordinates
     /// of the boxes it will test).
     pub fn new(view: &View, eyes: &Aabb) -> Frustum {
         let none = Frustum {
             planes: [(Vec3::ZERO, 0.0); 5],
+            eyes: [Vec3::ZERO; 5],
             count: 0,
         };
         let f = view.dir.as_dvec3();
@@ -190,7 +206,7 @@ impl Frustum {
         let mut used = 1;
         let up = view.up.as_dvec3();
         let r0 = f.cross(up);
-        if r0.length() > 1e-3 * up.length() && r0.length().is_finite() {
+        if r0.length() > Self::MIN_UP_ANGLE.sin() * up.length() && r0.length().is_finite() {
             let r = (r0 - f * r0.dot(f)).normalize();
             let u = r.cross(f);
             let (tx, ty) = (
@@ -211,19 +227,27 @@ impl Frustum {
             // The eye of the box furthest behind the plane.
             let e = Vec3::select(n.cmpge(Vec3::ZERO), eyes.min, eyes.max);
             out.planes[out.count] = (n, n.dot(e));
+            out.eyes[out.count] = e;
             out.count += 1;
         }
         out
     }
 
     /// Whether some point of the box `b` may be in the frustum: false only
-    /// when all of it is outside one plane (by more than f32 rounding).
+    /// when all of it is outside one plane by more than the slack.
     pub fn may_see(&self, b: &Aabb) -> bool {
-        self.planes[..self.count].iter().all(|&(n, d)| {
-            let p = Vec3::select(n.cmpge(Vec3::ZERO), b.max, b.min);
-            let along = n.dot(p);
-            along >= d - 1e-5 * (1.0 + d.abs() + along.abs())
-        })
+        self.planes[..self.count]
+            .iter()
+            .zip(&self.eyes)
+            .all(|(&(n, d), &e)| {
+                let p = Vec3::select(n.cmpge(Vec3::ZERO), b.max, b.min);
+                let along = n.dot(p);
+                // The box's farthest point from the eye moves most when the
+                // plane turns.
+                let far = (b.min - e).abs().max((b.max - e).abs()).length();
+                let slack = Self::ANGLE_SLACK * far + 1e-6 * (1.0 + d.abs() + along.abs());
+                along >= d - slack
+            })
     }
 }
 

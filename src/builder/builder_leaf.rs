@@ -86,42 +86,68 @@ pub(super) fn visible_set(
     seed: u64,
     stats: &mut BuildStats,
 ) -> (ObjectSet, ObjectSet) {
-    let params = ctx.params;
     let min_misses = tests.min_misses;
     let mut set = tests.proven;
     let mut rejected = ObjectSet::new(set.capacity());
     stats.decisions.proven_by_hit += set.count() as u64;
-    let mut pending: Vec<Pending> = Vec::new();
+    // The candidates first, exactly as without retests; then the retests,
+    // which can then only add objects (a retest ray that proved a
+    // candidate early would stop that candidate's samples, and a later one
+    // of them might have proven a third object).
     let retest_seed = mix(seed, RETEST_STREAM);
-    let queue = tests
-        .candidates
-        .iter()
-        .map(|o| (o, false))
-        .chain(tests.retest.iter().map(|o| (o, true)));
-    for (o, retest) in queue {
-        if set.contains(o) {
-            continue;
-        }
-        if !reachable(cell, &ctx.scene.objects()[o].bounds) {
-            if !retest {
-                stats.decisions.geometry_invisible += 1;
+    for (objects, retest) in [(tests.candidates, false), (tests.retest, true)] {
+        let mut pending: Vec<Pending> = Vec::new();
+        for o in objects.iter() {
+            if set.contains(o) {
+                continue;
             }
-            continue;
+            if !reachable(cell, &ctx.scene.objects()[o].bounds) {
+                if !retest {
+                    stats.decisions.geometry_invisible += 1;
+                }
+                continue;
+            }
+            if retest {
+                stats.decisions.retested += 1;
+            }
+            pending.push(Pending {
+                object: o,
+                retest,
+                misses: 0,
+                rng: Pcg64::seed_from_u64(mix(if retest { retest_seed } else { seed }, o as u64)),
+                sampler: AdaptiveSampler::new(cell),
+                rejected: 0,
+                done: false,
+            });
         }
-        if retest {
-            stats.decisions.retested += 1;
-        }
-        pending.push(Pending {
-            object: o,
-            retest,
-            misses: 0,
-            rng: Pcg64::seed_from_u64(mix(if retest { retest_seed } else { seed }, o as u64)),
-            sampler: AdaptiveSampler::new(cell),
-            rejected: 0,
-            done: false,
-        });
+        run(
+            ctx,
+            cell,
+            pending,
+            min_misses,
+            &mut set,
+            &mut rejected,
+            stats,
+        );
     }
+    // An object the SPRT dropped may have been hit by a later ray.
+    rejected.subtract(&set);
+    (set, rejected)
+}
 
+/// Samples every object of `pending` until it is decided, in rounds (see
+/// the module docs), adding to `set` what rays prove and to `rejected`
+/// the candidates the SPRT calls invisible.
+fn run(
+    ctx: &Ctx,
+    cell: &Cell,
+    mut pending: Vec<Pending>,
+    min_misses: u32,
+    set: &mut ObjectSet,
+    rejected: &mut ObjectSet,
+    stats: &mut BuildStats,
+) {
+    let params = ctx.params;
     let mut batch = 4u32;
     let mut rays: Vec<Ray> = Vec::new();
     let mut owner: Vec<u32> = Vec::new();
@@ -225,7 +251,4 @@ pub(super) fn visible_set(
         pending.retain(|p| !p.done);
         batch = (batch * 2).min(256);
     }
-    // An object the SPRT dropped may have been hit by a later ray.
-    rejected.subtract(&set);
-    (set, rejected)
 }

@@ -103,8 +103,12 @@ impl BoundsGrid {
             while high > 0 && self.value(axis, high - 1, true) >= b.max[axis] {
                 high -= 1;
             }
+            // Where the grid's steps are finer than f32 there, several codes
+            // decode to one value and a flat box's codes can cross: the low
+            // code's value rounded up holds the maximum too (it is at least
+            // the high code's, which does).
             q[axis] = low;
-            q[3 + axis] = high;
+            q[3 + axis] = high.max(low);
         }
         q
     }
@@ -189,6 +193,23 @@ mod tests {
             assert_eq!((d.min.z, d.max.z), (2.0, 2.0));
         }
         assert_eq!(grid.quantise(None), UNKNOWN);
+        // A grid thinner than 65,535 f32 steps (a site plan at z = 50 with
+        // a 5 cm kerb): flat boxes on it used to get crossed codes, which
+        // the reader refuses.
+        let boxes = [
+            Aabb::new(Vec3::new(0.0, 0.0, 50.0), Vec3::new(40.0, 40.0, 50.0)),
+            Aabb::new(Vec3::new(0.0, 0.0, 50.05), Vec3::new(40.0, 1.0, 50.05)),
+        ];
+        let grid = BoundsGrid::over(&boxes);
+        for b in &boxes {
+            let q = grid.quantise(Some(b));
+            let d = grid.dequantise(q).unwrap().unwrap();
+            assert!(
+                d.min.cmple(b.min).all() && d.max.cmpge(b.max).all(),
+                "{b:?} {d:?}"
+            );
+            assert_eq!(grid.quantise(Some(&d)), q);
+        }
         assert_eq!(grid.dequantise(UNKNOWN).unwrap(), None);
         assert!(grid.dequantise([5, 0, 0, 4, 9, 9]).is_err());
         assert!(BoundsGrid::over(&[]).is_valid());

@@ -652,3 +652,29 @@ fn far_trees_take_f64_world_positions() {
     }
     assert!(equal >= 45, "{equal} of 50 equal");
 }
+
+/// A site plan off zero along its thin axis (ground at z = 50, a 5 cm
+/// kerb): the bounds grid there is finer than f32, and flat objects got
+/// crossed bounds codes that the reader refused, so the build failed
+/// ("the bounds codes ... are not a box"). A review found it.
+#[test]
+fn a_thin_site_plan_off_zero_builds() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = "o ground\nv 0 0 50\nv 40 0 50\nv 40 40 50\nv 0 40 50\nf 1 2 3\nf 1 3 4\n\
+               o kerb\nv 0 0 50.05\nv 40 0 50.05\nv 40 1 50.05\nv 0 1 50.05\nf 5 6 7\nf 5 7 8\n";
+    let model = write(dir.path(), "site.obj", obj);
+    let out = vis5d(&["build", &model, "--max-depth", "3"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v5d = dir.path().join("site.v5d");
+    let out = vis5d(&[
+        "query",
+        v5d.to_str().unwrap(),
+        "--pos",
+        "20,20,50.02",
+        "--dir",
+        "0,0,1",
+        "--scene",
+        &model,
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+}

@@ -371,3 +371,58 @@ fn regression_corpus_decodes_without_panicking() {
     }
     assert!(n > 0, "no corpus in {}", dir.display());
 }
+
+/// Culling keeps every point a renderer's pixel rays reach, also where the
+/// renderer's f32 frame is off the exact one: a review found `Camera`
+/// rolled by 6e-5 rad with `up` 1e-3 rad from `dir`, and `query_view`
+/// culled an object a 160-degree-wide view's edge pixel hit.
+#[test]
+fn culling_keeps_what_a_renderers_edge_pixels_reach() {
+    use vis5d::query::Frustum;
+    let eye = Vec3::new(1.0, 2.0, 1.5);
+    let dir = Vec3::new(0.3, -0.8, 0.2).normalize();
+    let side = dir.any_orthonormal_vector();
+    let mut checked = 0;
+    for angle in [1.001e-3f32, 3e-3, 1.1e-2, 0.02, 0.3, 1.5] {
+        let up = (dir * angle.cos() + side * angle.sin()).normalize();
+        for (fx, fy) in [
+            (30.0f32, 160.0f32),
+            (160.0, 30.0),
+            (90.0, 90.0),
+            (1.0, 169.0),
+            (0.01, 0.01),
+        ] {
+            let view = View {
+                position: eye,
+                radius: 0.0,
+                dir,
+                up,
+                fov_x: fx.to_radians(),
+                fov_y: fy.to_radians(),
+            };
+            let frustum = Frustum::new(&view, &Aabb::new(eye, eye));
+            let Some(camera) = Camera::new(&view, 3840, 2160) else {
+                continue;
+            };
+            for (x, y) in [
+                (0.0, 0.0),
+                (3840.0, 0.0),
+                (0.0, 2160.0),
+                (3840.0, 2160.0),
+                (1920.0, 0.0),
+                (0.0, 1080.0),
+            ] {
+                let r = camera.ray_through(x, y);
+                for t in [0.01f32, 1.0, 30.0, 1000.0] {
+                    let p = r.origin + r.dir * t;
+                    assert!(
+                        frustum.may_see(&Aabb::new(p, p)),
+                        "up {angle} rad from dir, fov {fx}x{fy}: the point at t = {t} of pixel ({x}, {y}) is culled"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert!(checked > 500, "{checked}");
+}
