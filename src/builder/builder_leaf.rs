@@ -148,7 +148,13 @@ fn run(
     stats: &mut BuildStats,
 ) {
     let params = ctx.params;
-    let mut batch = 4u32;
+    // Retests nearly all end in their whole budget of misses: one round.
+    let retests = pending.first().is_some_and(|p| p.retest);
+    let mut batch = if retests {
+        params.retest_rays.max(4)
+    } else {
+        4u32
+    };
     let mut rays: Vec<Ray> = Vec::new();
     let mut owner: Vec<u32> = Vec::new();
     while !pending.is_empty() {
