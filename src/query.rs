@@ -242,8 +242,12 @@ impl Frustum {
             .all(|(&(n, d), &e)| {
                 let p = Vec3::select(n.cmpge(Vec3::ZERO), b.max, b.min);
                 let along = n.dot(p);
-                // The box's farthest point from the eye moves most when the
-                // plane turns.
+                if along >= d {
+                    return true;
+                }
+                // Outside, but maybe by less than the slack: the box's
+                // farthest point from the eye moves most when the plane
+                // turns.
                 let far = (b.min - e).abs().max((b.max - e).abs()).length();
                 let slack = Self::ANGLE_SLACK * far + 1e-6 * (1.0 + d.abs() + along.abs());
                 along >= d - slack
@@ -421,8 +425,6 @@ pub struct Pvs {
     frame: Frame,
     params: String,
     objects: Vec<FileObject>,
-    /// Per object, its bounds when the file has them (local).
-    bounds: Vec<Option<Aabb>>,
     root: Cell,
     nodes: Vec<QueryNode>,
     /// `words` words per node, in node order.
@@ -493,7 +495,6 @@ impl Pvs {
             fingerprint: file.fingerprint,
             frame: file.frame,
             params: file.params,
-            bounds: file.objects.iter().map(|o| o.bounds).collect(),
             objects: file.objects,
             root,
             nodes,
@@ -510,7 +511,7 @@ impl Pvs {
     /// The bounding box of object `object` in local coordinates, as the
     /// file stores it (quantised outwards); `None` for a version 1 file.
     pub fn object_bounds(&self, object: usize) -> Option<Aabb> {
-        self.bounds[object]
+        self.objects[object].bounds
     }
 
     /// The number of objects (the capacity of every answer).
@@ -662,7 +663,7 @@ impl Pvs {
             while bits != 0 {
                 let b = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
-                if let Some(Some(bounds)) = self.bounds.get(w * 64 + b)
+                if let Some(Some(bounds)) = self.objects.get(w * 64 + b).map(|o| &o.bounds)
                     && !frustum.may_see(bounds)
                 {
                     *word &= !(1u64 << b);
