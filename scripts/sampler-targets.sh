@@ -14,8 +14,8 @@ bin=target/release/vis5d
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 source scripts/scenes.sh
-echo "| scene | build (s) | rays (M) | leaves | mean pixel error | worst view | drawn / view | seen / view | drawn / seen | views with misses | retest finds |"
-echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+echo "| scene | build (s) | rays (M) | leaves | mean pixel error | worst view | drawn / view | seen / view | drawn / seen | views with misses | retest finds | edge finds |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
 for s in "${scenes[@]}"; do
     name=$(scene_name "$s")
     start=$(date +%s.%N)
@@ -33,6 +33,6 @@ d = b["decisions"]
 print(f"| {sys.argv[3]} | {float(sys.argv[5]) - float(sys.argv[4]):.2f} | {b['rays_cast'] / 1e6:.2f} | "
       f"{b['leaves']} | {t['mean_pixel_error']:.2e} | {100 * t['worst_pixel_error']:.3f}% | "
       f"{t['mean_objects']:.1f} | {seen:.1f} | {t['mean_objects'] / seen:.2f} | "
-      f"{t['views_with_misses']} | {d.get('retest_found', 0)} |")
+      f"{t['views_with_misses']} | {d.get('retest_found', 0)} | {d.get('edge_found', 0)} |")
 PY
 done

@@ -39,6 +39,7 @@ use crate::bitset::ObjectSet;
 use crate::codec::{CodecError, Coding, FileObject, ReadLimits, read_file};
 use crate::geom::cell::{Cell, DIMS, grid_value};
 use crate::geom::{Aabb, Frame};
+use crate::tree::LeafRecord;
 
 /// Why a `.v5d` file cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -430,6 +431,8 @@ pub struct Pvs {
     /// `words` words per node, in node order.
     sets: Vec<u64>,
     words: usize,
+    /// Per node (leaves only meaningful), when the file has leaf records.
+    records: Option<Vec<LeafRecord>>,
 }
 
 impl Pvs {
@@ -461,7 +464,11 @@ impl Pvs {
         let tree = file.tree;
         let (root, grid_bits) = (tree.root_cell(), tree.grid_bits());
         let words = tree.object_count().div_ceil(64);
-        let tree_nodes = tree.into_nodes();
+        let (tree_nodes, leaf_records) = tree.into_parts();
+        let mut leaf_records = leaf_records.map(|r| r.into_iter());
+        let mut records = leaf_records
+            .as_ref()
+            .map(|_| Vec::with_capacity(tree_nodes.len()));
         let mut nodes = Vec::with_capacity(tree_nodes.len());
         let mut sets = Vec::with_capacity(tree_nodes.len() * words);
         // Replay the cells in preorder to precompute split values; each
@@ -470,6 +477,13 @@ impl Pvs {
         for node in tree_nodes {
             let cell = stack.pop().expect("preorder: one cell per node");
             sets.extend_from_slice(node.set.words());
+            if let (Some(records), Some(leaf_records)) = (&mut records, &mut leaf_records) {
+                let record = match node.split {
+                    None => leaf_records.next().expect("one record per leaf"),
+                    Some(_) => LeafRecord::default(),
+                };
+                records.push(record);
+            }
             match node.split {
                 None => nodes.push(QueryNode {
                     dim: LEAF,
@@ -500,6 +514,7 @@ impl Pvs {
             nodes,
             sets,
             words,
+            records,
         })
     }
 
@@ -573,9 +588,8 @@ impl Pvs {
         &self.sets[node * self.words..(node + 1) * self.words]
     }
 
-    /// The set of the leaf holding the ray point `p` = (x, y, z, theta,
-    /// phi), local coordinates, as words of bits (bit i = object i).
-    pub fn leaf_set(&self, p: [f32; DIMS]) -> &[u64] {
+    /// The node index of the leaf holding the ray point `p`.
+    fn leaf_of(&self, p: [f32; DIMS]) -> usize {
         let mut i = 0;
         while self.nodes[i].dim != LEAF {
             let n = self.nodes[i];
@@ -585,7 +599,36 @@ impl Pvs {
                 n.above as usize
             };
         }
-        self.set_words(i)
+        i
+    }
+
+    /// The set of the leaf holding the ray point `p` = (x, y, z, theta,
+    /// phi), local coordinates, as words of bits (bit i = object i).
+    pub fn leaf_set(&self, p: [f32; DIMS]) -> &[u64] {
+        self.set_words(self.leaf_of(p))
+    }
+
+    /// How sure the set of the leaf holding the ray point `p` (local
+    /// coordinates) is: the objects its build called invisible, the fewest
+    /// rays behind one, the objects kept undecided
+    /// ([`LeafRecord::largest_missed_fraction`] reads the residual risk).
+    /// `None` for files before version 3.
+    pub fn leaf_record(&self, p: [f32; DIMS]) -> Option<LeafRecord> {
+        let records = self.records.as_ref()?;
+        Some(records[self.leaf_of(p)])
+    }
+
+    /// The records of all leaves, in preorder, when the file has them.
+    pub fn leaf_records(&self) -> Option<Vec<LeafRecord>> {
+        let records = self.records.as_ref()?;
+        Some(
+            self.nodes
+                .iter()
+                .zip(records)
+                .filter(|(n, _)| n.dim == LEAF)
+                .map(|(_, r)| *r)
+                .collect(),
+        )
     }
 
     /// As [`Pvs::query_range`], with the box of positions `[min, max]` in

@@ -80,6 +80,39 @@ pub struct TreeSummary {
     pub measure_weighted_objects: f64,
 }
 
+/// How sure a leaf's set is: what the build's decisions for the leaf rest
+/// on, so that a user can read the residual risk of a leaf
+/// ([`LeafRecord::largest_missed_fraction`]). Stored per leaf in `.v5d`
+/// files from version 3 (notes/format.md).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LeafRecord {
+    /// Objects called invisible from the leaf's cell on ray evidence, by
+    /// the leaf's own test or by an ancestor's (objects no direction of
+    /// the cell reaches are not counted: that is proof, not evidence).
+    pub rejected: u32,
+    /// The fewest object samples, all misses, behind any of those
+    /// rejections (0 when none was rejected).
+    pub fewest_rays: u32,
+    /// Objects kept in the set without a decision: their samples were
+    /// almost all outside the cell's directions, or the test reached its
+    /// ray cap (conservative: overdraw, not popping).
+    pub undecided: u32,
+}
+
+impl LeafRecord {
+    /// The largest visible fraction (of the object samples of the cell,
+    /// papers/003's s) that an object called invisible could still have,
+    /// with probability at least `1 - confidence` of getting only misses:
+    /// `1 - (1 - confidence)^(1 / fewest_rays)`. 0 when nothing was
+    /// rejected. With 0.95 and 200 rays, 1.5%.
+    pub fn largest_missed_fraction(&self, confidence: f64) -> f64 {
+        if self.rejected == 0 || self.fewest_rays == 0 {
+            return if self.rejected == 0 { 0.0 } else { 1.0 };
+        }
+        1.0 - (1.0 - confidence.clamp(0.0, 1.0)).powf(1.0 / self.fewest_rays as f64)
+    }
+}
+
 /// A 5D k-d tree of visible sets.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VisTree {
@@ -87,6 +120,8 @@ pub struct VisTree {
     grid_bits: u32,
     objects: usize,
     nodes: Vec<Node>,
+    /// Per leaf, in preorder, when known.
+    records: Option<Vec<LeafRecord>>,
 }
 
 impl VisTree {
@@ -97,13 +132,41 @@ impl VisTree {
             grid_bits,
             objects,
             nodes,
+            records: None,
         }
+    }
+
+    /// The tree with a record per leaf, in preorder (`None` when they
+    /// are not known). Fails (returns the records back) when their number
+    /// is not the leaf count.
+    pub fn with_leaf_records(
+        mut self,
+        records: Option<Vec<LeafRecord>>,
+    ) -> Result<Self, Vec<LeafRecord>> {
+        match records {
+            Some(r) if r.len() != self.leaf_count() => Err(r),
+            r => {
+                self.records = r;
+                Ok(self)
+            }
+        }
+    }
+
+    /// The record of each leaf, in preorder, when known (built trees and
+    /// files from version 3).
+    pub fn leaf_records(&self) -> Option<&[LeafRecord]> {
+        self.records.as_deref()
     }
 
     /// The tree's nodes, in preorder, given up (so that a caller can turn
     /// their sets into another layout without holding both).
     pub fn into_nodes(self) -> Vec<Node> {
         self.nodes
+    }
+
+    /// The nodes and the leaf records, given up.
+    pub fn into_parts(self) -> (Vec<Node>, Option<Vec<LeafRecord>>) {
+        (self.nodes, self.records)
     }
 
     /// The root cell: the view box times all directions.

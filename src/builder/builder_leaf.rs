@@ -16,7 +16,8 @@
 //!   reaches its bounding box ([`reachable`]);
 //! - visible as soon as a ray hits it;
 //! - invisible when the SPRT's odds fall below B and, in an internal node,
-//!   after at least `internal_miss_factor` times the misses the SPRT needs
+//!   for an object near one the cell's rays hit, after at least
+//!   `internal_miss_factor` times the misses the SPRT needs
 //!   on its own (an object dropped there is lost to the whole subtree);
 //! - visible when the SPRT reaches its cap, or when its samples are
 //!   almost all rejected ([`AdaptiveSampler::hopeless`], or more than
@@ -53,6 +54,8 @@ struct Pending {
     retest: bool,
     /// Rays taken that did not hit it.
     misses: u32,
+    /// The fewest misses before it may be called invisible.
+    min_misses: u32,
     rng: Pcg64,
     sampler: AdaptiveSampler,
     rejected: u32,
@@ -74,22 +77,40 @@ pub(super) struct Tests<'a> {
     /// An object is declared invisible only after at least this many rays
     /// (internal nodes ask for more evidence than the SPRT's own).
     pub min_misses: u32,
+    /// The objects near one the cell's rays hit: `min_misses` applies to
+    /// these only (the others need the SPRT's own misses).
+    pub near: &'a ObjectSet,
 }
 
-/// The visible set of `cell`: `proven` plus the candidates the SPRT keeps
-/// plus the retested objects a ray hits; and the candidates the SPRT
-/// called invisible (for the leaves below to retest).
+/// What a cell's tests decided.
+pub(super) struct Decided {
+    /// `proven` plus the candidates the SPRT keeps plus the retested
+    /// objects a ray hits.
+    pub set: ObjectSet,
+    /// The candidates the SPRT called invisible (for the leaves below to
+    /// retest).
+    pub rejected: ObjectSet,
+    /// The fewest misses behind one of those (`u32::MAX` when none).
+    pub fewest_misses: u32,
+    /// Candidates kept without a decision (rejected samples, ray cap).
+    pub undecided: u32,
+}
+
+/// Tests the candidates and retests of `cell` (see the module docs).
 pub(super) fn visible_set(
     ctx: &Ctx,
     cell: &Cell,
     tests: Tests<'_>,
     seed: u64,
     stats: &mut BuildStats,
-) -> (ObjectSet, ObjectSet) {
-    let min_misses = tests.min_misses;
-    let mut set = tests.proven;
-    let mut rejected = ObjectSet::new(set.capacity());
-    stats.decisions.proven_by_hit += set.count() as u64;
+) -> Decided {
+    let mut d = Decided {
+        set: tests.proven,
+        rejected: ObjectSet::new(tests.candidates.capacity()),
+        fewest_misses: u32::MAX,
+        undecided: 0,
+    };
+    stats.decisions.proven_by_hit += d.set.count() as u64;
     // The candidates first, exactly as without retests; then the retests,
     // which can then only add objects (a retest ray that proved a
     // candidate early would stop that candidate's samples, and a later one
@@ -98,7 +119,7 @@ pub(super) fn visible_set(
     for (objects, retest) in [(tests.candidates, false), (tests.retest, true)] {
         let mut pending: Vec<Pending> = Vec::new();
         for o in objects.iter() {
-            if set.contains(o) {
+            if d.set.contains(o) {
                 continue;
             }
             if !reachable(cell, &ctx.scene.objects()[o].bounds) {
@@ -114,39 +135,29 @@ pub(super) fn visible_set(
                 object: o,
                 retest,
                 misses: 0,
+                min_misses: if tests.near.contains(o) {
+                    tests.min_misses
+                } else {
+                    0
+                },
                 rng: Pcg64::seed_from_u64(mix(if retest { retest_seed } else { seed }, o as u64)),
                 sampler: AdaptiveSampler::new(cell),
                 rejected: 0,
                 done: false,
             });
         }
-        run(
-            ctx,
-            cell,
-            pending,
-            min_misses,
-            &mut set,
-            &mut rejected,
-            stats,
-        );
+        run(ctx, cell, pending, &mut d, stats);
     }
     // An object the SPRT dropped may have been hit by a later ray.
-    rejected.subtract(&set);
-    (set, rejected)
+    d.rejected.subtract(&d.set);
+    d
 }
 
 /// Samples every object of `pending` until it is decided, in rounds (see
-/// the module docs), adding to `set` what rays prove and to `rejected`
-/// the candidates the SPRT calls invisible.
-fn run(
-    ctx: &Ctx,
-    cell: &Cell,
-    mut pending: Vec<Pending>,
-    min_misses: u32,
-    set: &mut ObjectSet,
-    rejected: &mut ObjectSet,
-    stats: &mut BuildStats,
-) {
+/// the module docs), adding to `d.set` what rays prove and to
+/// `d.rejected` the candidates the SPRT calls invisible.
+fn run(ctx: &Ctx, cell: &Cell, mut pending: Vec<Pending>, d: &mut Decided, stats: &mut BuildStats) {
+    let set = &mut d.set;
     let params = ctx.params;
     // Retests nearly all end in their whole budget of misses: one round.
     let retests = pending.first().is_some_and(|p| p.retest);
@@ -219,15 +230,17 @@ fn run(
                 let (stop, decision) = ctx.misses_decision;
                 match decision {
                     _ if p.misses < stop => {}
-                    Decision::Invisible if p.misses < min_misses => {}
+                    Decision::Invisible if p.misses < p.min_misses => {}
                     Decision::Undecided => unreachable!("the test always ends"),
                     Decision::Invisible => {
                         stats.decisions.sprt_invisible += 1;
-                        rejected.insert(p.object);
+                        d.rejected.insert(p.object);
+                        d.fewest_misses = d.fewest_misses.min(p.misses);
                         p.done = true;
                     }
                     Decision::Visible | Decision::CapReached => {
                         stats.decisions.cap_reached += 1;
+                        d.undecided += 1;
                         set.insert(p.object);
                         p.done = true;
                     }
@@ -250,6 +263,7 @@ fn run(
                 p.done = true;
             } else if p.rejected > params.rejection_budget || p.sampler.hopeless() {
                 stats.decisions.rejection_kept += 1;
+                d.undecided += 1;
                 set.insert(p.object);
                 p.done = true;
             }

@@ -7,13 +7,13 @@ use std::time::Instant;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
-use super::{BuildParams, BuildStats, builder_leaf, builder_split, mix};
+use super::{BuildParams, BuildStats, builder_edges, builder_leaf, builder_split, mix};
 use crate::bitset::ObjectSet;
 use crate::geom::cell::{Cell, DIMS, PHI, THETA, grid_value};
 use crate::sample::{cell_point, cell_ray};
 use crate::scene::Scene;
-use crate::trace::{Ray, Tracer};
-use crate::tree::{Node, Split};
+use crate::trace::{Hit, Ray, Tracer};
+use crate::tree::{LeafRecord, Node, Split};
 
 /// What every node of a build shares.
 pub(super) struct Ctx<'a> {
@@ -45,11 +45,17 @@ pub(super) struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    /// Traces `rays` in parallel, timing it.
-    pub fn trace(&self, rays: &[Ray], stats: &mut BuildStats) -> Vec<Option<u32>> {
+    /// Traces `rays` in parallel, timing it: the closest hits.
+    pub fn trace_hits(&self, rays: &[Ray], stats: &mut BuildStats) -> Vec<Option<Hit>> {
         let start = Instant::now();
         let hits = self.tracer.closest_hits(rays);
         stats.trace_seconds += start.elapsed().as_secs_f64();
+        hits
+    }
+
+    /// Traces `rays` in parallel, timing it: the objects hit.
+    pub fn trace(&self, rays: &[Ray], stats: &mut BuildStats) -> Vec<Option<u32>> {
+        let hits = self.trace_hits(rays, stats);
         hits.into_iter().map(|h| h.map(|h| h.object)).collect()
     }
 
@@ -64,11 +70,13 @@ impl Ctx<'_> {
     }
 }
 
-/// A cached cell ray: its 5D point and the object its closest hit is on.
+/// A cached cell ray: its 5D point, the object its closest hit is on and
+/// the triangle it hit (`u32::MAX` for none).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct CachedRay {
     pub p: [f32; DIMS],
     pub hit: Option<u32>,
+    pub triangle: u32,
 }
 
 /// Where a node stands in the recursion.
@@ -78,6 +86,9 @@ pub(super) struct NodeState {
     /// Forced angular cuts still to make below a final spatial cell
     /// (`spatial_only`), or `None` while splits are still chosen by E.
     angular_left: Option<u32>,
+    /// The fewest misses behind an ancestor's rejection (`u32::MAX` when
+    /// none was rejected), for the leaves' records.
+    fewest_dropped: u32,
 }
 
 impl NodeState {
@@ -85,12 +96,13 @@ impl NodeState {
     pub const ROOT: NodeState = NodeState {
         depth: 0,
         angular_left: None,
+        fewest_dropped: u32::MAX,
     };
 }
 
 /// A built subtree, before flattening into preorder.
 pub(super) enum Built {
-    Leaf(ObjectSet),
+    Leaf(ObjectSet, LeafRecord),
     Split {
         dim: u8,
         code: u32,
@@ -102,14 +114,18 @@ pub(super) enum Built {
 impl Built {
     fn set(&self) -> &ObjectSet {
         match self {
-            Built::Leaf(s) | Built::Split { set: s, .. } => s,
+            Built::Leaf(s, _) | Built::Split { set: s, .. } => s,
         }
     }
 
-    /// Appends the subtree to `nodes` in preorder.
-    pub fn flatten_into(self, nodes: &mut Vec<Node>) {
+    /// Appends the subtree to `nodes` in preorder, and its leaves' records
+    /// to `records`.
+    pub fn flatten_into(self, nodes: &mut Vec<Node>, records: &mut Vec<LeafRecord>) {
         match self {
-            Built::Leaf(set) => nodes.push(Node { split: None, set }),
+            Built::Leaf(set, record) => {
+                nodes.push(Node { split: None, set });
+                records.push(record);
+            }
             Built::Split {
                 dim,
                 code,
@@ -119,9 +135,9 @@ impl Built {
                 let me = nodes.len();
                 nodes.push(Node { split: None, set });
                 let [below, above] = *children;
-                below.flatten_into(nodes);
+                below.flatten_into(nodes, records);
                 let above_index = nodes.len() as u32;
-                above.flatten_into(nodes);
+                above.flatten_into(nodes, records);
                 nodes[me].split = Some(Split {
                     dim,
                     code,
@@ -195,19 +211,26 @@ pub(super) fn build_node(
         }
         within
     });
-    // A leaf retests the dropped objects near those its rays hit: where
-    // rays end is where a small visible part of a dropped object would
-    // be, and it bounds the work (a cell of a block of apartments has
-    // dropped the thousands of objects of the others).
-    let mut retest = ObjectSet::new(candidates.capacity());
-    if split.is_none() && params.retest_rays > 0 && !dropped.is_empty() {
+    // The objects near those the cell's rays hit: where a small visible
+    // part of an object hidden elsewhere would be. An internal node asks
+    // more evidence before it drops one of them (every cell below inherits
+    // the verdict), and a leaf retests those an ancestor dropped. Objects
+    // far from every hit (in another apartment of a block) are neither:
+    // that bounds the work.
+    let mut near = ObjectSet::new(candidates.capacity());
+    if (split.is_some() && params.internal_miss_factor > 1)
+        || (split.is_none() && params.retest_rays > 0 && !dropped.is_empty())
+    {
         for o in proven.iter() {
             for &n in &ctx.neighbours[o] {
-                if dropped.contains(n as usize) {
-                    retest.insert(n as usize);
-                }
+                near.insert(n as usize);
             }
         }
+    }
+    let mut retest = ObjectSet::new(candidates.capacity());
+    if split.is_none() && params.retest_rays > 0 {
+        retest.union_with(&near);
+        retest.intersect_with(dropped);
     }
     let retest = &retest;
     let tests = builder_leaf::Tests {
@@ -215,11 +238,24 @@ pub(super) fn build_node(
         retest,
         proven,
         min_misses,
+        near: &near,
     };
-    let (set, rejected) = builder_leaf::visible_set(ctx, &cell, tests, seed, stats);
+    let decided = builder_leaf::visible_set(ctx, &cell, tests, seed, stats);
+    let (mut set, rejected) = (decided.set, decided.rejected);
+    if split.is_none() {
+        builder_edges::edge_rays(ctx, &cell, seed, &cache, &mut set, stats);
+    }
     let Some((dim, code)) = split else {
         ctx.finished(&cell);
-        return Built::Leaf(set);
+        let record = leaf_record(
+            &set,
+            dropped,
+            state.fewest_dropped,
+            &rejected,
+            decided.fewest_misses,
+            decided.undecided,
+        );
+        return Built::Leaf(set, record);
     };
     // What the children's leaves retest: what was dropped above or here,
     // less what this cell's rays proved.
@@ -239,6 +275,11 @@ pub(super) fn build_node(
                 Some(params.angular_leaves.trailing_zeros() - 1)
             }
             None => None,
+        },
+        fewest_dropped: if rejected.is_empty() {
+            state.fewest_dropped
+        } else {
+            state.fewest_dropped.min(decided.fewest_misses)
         },
     };
     let mut below_stats = BuildStats::default();
@@ -281,6 +322,38 @@ pub(super) fn build_node(
     }
 }
 
+/// The record of a leaf whose set is `set`, whose ancestors dropped
+/// `dropped` (the fewest misses behind one: `fewest_dropped`), and whose
+/// own test rejected `rejected` (fewest misses `fewest_own`) and kept
+/// `undecided` without a decision.
+fn leaf_record(
+    set: &ObjectSet,
+    dropped: &ObjectSet,
+    fewest_dropped: u32,
+    rejected: &ObjectSet,
+    fewest_own: u32,
+    undecided: u32,
+) -> LeafRecord {
+    let mut from_above = dropped.clone();
+    from_above.subtract(set);
+    let mut own = rejected.clone();
+    own.subtract(set);
+    own.subtract(&from_above);
+    let mut fewest = u32::MAX;
+    if !from_above.is_empty() {
+        fewest = fewest.min(fewest_dropped);
+    }
+    if !own.is_empty() {
+        fewest = fewest.min(fewest_own);
+    }
+    let count = (from_above.count() + own.count()) as u32;
+    LeafRecord {
+        rejected: count,
+        fewest_rays: if count == 0 { 0 } else { fewest },
+        undecided,
+    }
+}
+
 /// The forced cut that makes angular leaves, `left` cuts before the
 /// leaves: theta and phi alternate from the first cut (theta), theta at its
 /// midpoint, phi at the midpoint of cos phi (equal solid angle), both on
@@ -318,12 +391,11 @@ fn top_up_cache(
         .map(|_| cell_point(cell, &mut rng))
         .collect();
     let rays: Vec<Ray> = points.iter().map(cell_ray).collect();
-    let hits = ctx.trace(&rays, stats);
+    let hits = ctx.trace_hits(&rays, stats);
     stats.cell_rays += rays.len() as u64;
-    cache.extend(
-        points
-            .into_iter()
-            .zip(hits)
-            .map(|(p, hit)| CachedRay { p, hit }),
-    );
+    cache.extend(points.into_iter().zip(hits).map(|(p, hit)| CachedRay {
+        p,
+        hit: hit.map(|h| h.object),
+        triangle: hit.map_or(u32::MAX, |h| h.triangle),
+    }));
 }

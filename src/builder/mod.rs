@@ -8,7 +8,12 @@
 //!    node's partitioning", sec. 9) and trace them; every object a cached
 //!    ray hits is proven visible (`builder_node.rs`);
 //! 2. decide the other candidates by the SPRT on object samples
-//!    (`builder_leaf.rs`): C's set;
+//!    (`builder_leaf.rs`): C's set.
+//!    A leaf then retests objects its ancestors dropped near what its rays
+//!    hit, and casts edge rays past the triangles its rays hit
+//!    (`builder_edges.rs`, after GVS's border sampling); both only add
+//!    objects a ray hit. Each leaf keeps a [`LeafRecord`](crate::tree::LeafRecord)
+//!    of what its rejections rest on;
 //! 3. stop on the depth limit, on too few visible triangles (the paper's
 //!    "split only if at least 500 polygons are visible"), or when no
 //!    candidate split scores E(A, B) above the threshold
@@ -31,6 +36,7 @@
 //! object invisible after seeing it hit (visible fraction below
 //! s_thresh): that is popping, which vis5d does not trade for tightness.
 
+mod builder_edges;
 mod builder_leaf;
 mod builder_node;
 mod builder_split;
@@ -60,10 +66,13 @@ pub const FLAT_THICKNESS: f32 = 1e-3;
 pub struct BuildParams {
     /// The sequential test deciding objects that no ray has hit.
     pub sprt: SprtParams,
-    /// An internal node declares an object invisible only after this many
-    /// times the misses in a row that the SPRT needs on its own: every cell
-    /// below inherits the verdict, so an object visible from a small part
-    /// of the cell must not be dropped on thin evidence.
+    /// An internal node declares an object near one its rays hit (boxes
+    /// grown by a tenth of their diagonal overlap) invisible only after
+    /// this many times the misses in a row that the SPRT needs on its own:
+    /// every cell below inherits the verdict, so an object that peeks out
+    /// from behind a visible one, seen from a small part of the cell, must
+    /// not be dropped on thin evidence. Objects far from every hit need the
+    /// SPRT's own run (a block of apartments drops the others' thousands).
     pub internal_miss_factor: u32,
     /// Uniform cell rays cached per cell to score splits and prove
     /// visibility (parents hand theirs down).
@@ -104,6 +113,11 @@ pub struct BuildParams {
     /// tenth of its diagonal, overlap; it keeps a block of apartments from
     /// retesting, in every leaf, the thousands of objects of the others.
     pub retest_rays: u32,
+    /// Edge rays a leaf casts per cached cell ray that hit something:
+    /// from the same origin, just past an edge of the triangle it hit
+    /// (`builder_edges.rs`, after GVS's adaptive border sampling), to find
+    /// objects that peek out from behind nearer ones (0: none).
+    pub edge_rays: u32,
     /// The positions to build for, in the scene's local coordinates
     /// ([`Scene::frame`]; the world's for a scene near the origin); `None`
     /// = the scene's bounding box.
@@ -131,7 +145,7 @@ impl Default for BuildParams {
                 prior_b: 50.0,
                 max_rays: 2000,
             },
-            internal_miss_factor: 1,
+            internal_miss_factor: 2,
             cache_rays: 2048,
             split_threshold: 0.3,
             max_depth: 12,
@@ -144,6 +158,7 @@ impl Default for BuildParams {
             grid_bits: 10,
             rejection_budget: 4096,
             retest_rays: 16,
+            edge_rays: 1,
             view_box: None,
             view_grow: 0.0,
             seed: 1,
@@ -238,7 +253,7 @@ impl BuildParams {
             expected: expected.to_owned(),
             value: value.to_string(),
         };
-        let counts: [(&'static str, u64, std::ops::RangeInclusive<u64>); 6] = [
+        let counts: [(&'static str, u64, std::ops::RangeInclusive<u64>); 7] = [
             (
                 "internal_miss_factor",
                 self.internal_miss_factor.into(),
@@ -253,6 +268,7 @@ impl BuildParams {
             ),
             ("max_nodes", self.max_nodes, 1..=u32::MAX as u64),
             ("retest_rays", self.retest_rays.into(), 0..=100_000),
+            ("edge_rays", self.edge_rays.into(), 0..=64),
         ];
         for (name, value, range) in counts {
             if !range.contains(&value) {
@@ -350,6 +366,7 @@ impl BuildParams {
             format!("grid_bits={}", self.grid_bits),
             format!("rejection_budget={}", self.rejection_budget),
             format!("retest_rays={}", self.retest_rays),
+            format!("edge_rays={}", self.edge_rays),
         ];
         lines.join("\n") + "\n"
     }
@@ -417,6 +434,9 @@ pub struct Decisions {
     pub retested: u64,
     /// Of those, the ones a retest ray hit: visible in the leaf after all.
     pub retest_found: u64,
+    /// Objects a leaf's edge rays found that nothing else had
+    /// ([`BuildParams::edge_rays`]).
+    pub edge_found: u64,
 }
 
 impl Decisions {
@@ -428,6 +448,7 @@ impl Decisions {
         self.rejection_kept += o.rejection_kept;
         self.retested += o.retested;
         self.retest_found += o.retest_found;
+        self.edge_found += o.edge_found;
     }
 }
 
@@ -438,6 +459,8 @@ pub struct BuildStats {
     pub cell_rays: u64,
     /// Object sample rays cast (the SPRTs).
     pub object_rays: u64,
+    /// Edge rays cast (leaves, [`BuildParams::edge_rays`]).
+    pub edge_rays: u64,
     /// Object samples rejected: direction outside the angular box.
     pub rejected: u64,
     /// Decisions by kind.
@@ -452,6 +475,7 @@ impl BuildStats {
     fn add(&mut self, o: &BuildStats) {
         self.cell_rays += o.cell_rays;
         self.object_rays += o.object_rays;
+        self.edge_rays += o.edge_rays;
         self.rejected += o.rejected;
         self.decisions.add(&o.decisions);
         self.trace_seconds += o.trace_seconds;
@@ -459,7 +483,7 @@ impl BuildStats {
 
     /// All rays cast.
     pub fn rays(&self) -> u64 {
-        self.cell_rays + self.object_rays
+        self.cell_rays + self.object_rays + self.edge_rays
     }
 }
 
@@ -503,7 +527,7 @@ pub fn build(
             .iter()
             .map(|o| o.triangle_count() as u64)
             .collect(),
-        neighbours: if params.retest_rays > 0 {
+        neighbours: if params.retest_rays > 0 || params.internal_miss_factor > 1 {
             neighbours(scene)
         } else {
             Vec::new()
@@ -537,8 +561,11 @@ pub fn build(
         });
     }
     let mut nodes = Vec::new();
-    built.flatten_into(&mut nodes);
-    let tree = VisTree::from_parts(root, params.grid_bits, scene.objects().len(), nodes);
+    let mut records = Vec::new();
+    built.flatten_into(&mut nodes, &mut records);
+    let tree = VisTree::from_parts(root, params.grid_bits, scene.objects().len(), nodes)
+        .with_leaf_records(Some(records))
+        .expect("one record per leaf");
     stats.seconds = start.elapsed().as_secs_f64();
     Ok((tree, stats))
 }

@@ -127,6 +127,12 @@ pub struct BuildArgs {
     /// 100,000].
     #[arg(long, default_value_t = BuildParams::default().retest_rays, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     retest_rays: u32,
+    /// Rays each leaf casts per cell ray that hit something, from the same
+    /// origin to just past an edge of the triangle it hit (guided
+    /// visibility sampling: finds objects that peek out from behind nearer
+    /// ones) [0 = none, to 64].
+    #[arg(long, default_value_t = BuildParams::default().edge_rays, value_parser = clap::value_parser!(u32).range(0..=64))]
+    edge_rays: u32,
     /// After building, render this many random views and report the pixel
     /// error [0 to 1,000,000].
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
@@ -168,6 +174,7 @@ impl BuildArgs {
             grid_bits: self.grid_bits,
             rejection_budget: self.rejection_budget,
             retest_rays: self.retest_rays,
+            edge_rays: self.edge_rays,
             view_box: None,
             view_grow: self.grow,
             seed: self.seed,
@@ -192,6 +199,7 @@ struct BuildReport {
     rays_cast: u64,
     cell_rays: u64,
     object_rays: u64,
+    edge_rays: u64,
     rays_rejected: u64,
     rays_per_second: f64,
     decisions: DecisionReport,
@@ -218,6 +226,7 @@ struct DecisionReport {
     rejection_kept: u64,
     retested: u64,
     retest_found: u64,
+    edge_found: u64,
 }
 
 #[derive(Serialize)]
@@ -405,6 +414,7 @@ fn build_report(
         rays_cast: stats.rays(),
         cell_rays: stats.cell_rays,
         object_rays: stats.object_rays,
+        edge_rays: stats.edge_rays,
         rays_rejected: stats.rejected,
         rays_per_second: stats.rays() as f64 / stats.seconds.max(1e-9),
         decisions: DecisionReport {
@@ -415,6 +425,7 @@ fn build_report(
             rejection_kept: d.rejection_kept,
             retested: d.retested,
             retest_found: d.retest_found,
+            edge_found: d.edge_found,
         },
         seconds: StageSeconds {
             load,
@@ -451,10 +462,11 @@ fn print_build(out: &mut impl Write, r: &BuildReport) -> io::Result<()> {
     print_shape(out, r.view_box, &r.tree)?;
     writeln!(
         out,
-        "  rays             {} cast ({} cell, {} object samples), {} samples rejected, {:.2} M/s",
+        "  rays             {} cast ({} cell, {} object samples, {} edge), {} samples rejected, {:.2} M/s",
         r.rays_cast,
         r.cell_rays,
         r.object_rays,
+        r.edge_rays,
         r.rays_rejected,
         r.rays_per_second / 1e6
     )?;
@@ -471,8 +483,8 @@ fn print_build(out: &mut impl Write, r: &BuildReport) -> io::Result<()> {
     )?;
     writeln!(
         out,
-        "                   {} retested in leaves, {} of them found visible",
-        d.retested, d.retest_found
+        "                   {} retested in leaves, {} of them found visible, {} found by edge rays",
+        d.retested, d.retest_found, d.edge_found
     )?;
     let s = &r.seconds;
     writeln!(

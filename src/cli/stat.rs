@@ -8,6 +8,7 @@ use anyhow::Result;
 use clap::Args;
 use glam::Vec3;
 use serde::Serialize;
+use vis5d::tree::LeafRecord;
 
 use crate::common::{
     CodingSize, ShapeReport, World, coding_sizes, print_shape, printable, read_v5d,
@@ -39,6 +40,40 @@ struct StatReport {
     #[serde(flatten)]
     tree: ShapeReport,
     coding_sizes: Vec<CodingSize>,
+    /// How sure the leaves' sets are (files from version 3).
+    leaf_records: Option<RecordSummary>,
+}
+
+/// The leaf records of a file, summarised: what the residual risk of its
+/// leaves rests on.
+#[derive(Serialize)]
+struct RecordSummary {
+    /// Leaves where some object was called invisible on ray evidence.
+    leaves_with_rejections: usize,
+    /// Objects called invisible, per leaf, on average.
+    mean_rejected: f64,
+    /// The fewest misses behind any rejection of any leaf.
+    fewest_rays: u32,
+    /// The largest visible fraction an object called invisible could
+    /// have, at 95% confidence, in the least sure leaf.
+    largest_missed_fraction_95: f64,
+    /// Objects kept without a decision, per leaf, on average.
+    mean_undecided: f64,
+}
+
+fn summarise_records(records: &[LeafRecord]) -> RecordSummary {
+    let n = records.len().max(1) as f64;
+    let rejecting: Vec<&LeafRecord> = records.iter().filter(|r| r.rejected > 0).collect();
+    RecordSummary {
+        leaves_with_rejections: rejecting.len(),
+        mean_rejected: records.iter().map(|r| r.rejected as f64).sum::<f64>() / n,
+        fewest_rays: rejecting.iter().map(|r| r.fewest_rays).min().unwrap_or(0),
+        largest_missed_fraction_95: records
+            .iter()
+            .map(|r| r.largest_missed_fraction(0.95))
+            .fold(0.0, f64::max),
+        mean_undecided: records.iter().map(|r| r.undecided as f64).sum::<f64>() / n,
+    }
 }
 
 /// Runs `vis5d stat`.
@@ -66,6 +101,7 @@ pub fn run(args: &StatArgs) -> Result<()> {
             .collect(),
         tree: summary.into(),
         coding_sizes: coding_sizes(tree),
+        leaf_records: tree.leaf_records().map(summarise_records),
     };
     let mut out = io::stdout().lock();
     if args.json {
@@ -103,6 +139,19 @@ pub fn run(args: &StatArgs) -> Result<()> {
             "    {:<8} {:>10} + {:>12} = {:>10} B{mark}",
             c.coding, c.structure_bits, c.set_bits, c.bytes
         )?;
+    }
+    match &r.leaf_records {
+        Some(l) => writeln!(
+            out,
+            "  leaf records     {} leaves rejected objects on ray evidence ({:.1} a leaf, at least {} misses each: \
+             a fraction over {:.2}% would have shown at 95%); {:.1} objects a leaf kept undecided",
+            l.leaves_with_rejections,
+            l.mean_rejected,
+            l.fewest_rays,
+            100.0 * l.largest_missed_fraction_95,
+            l.mean_undecided
+        )?,
+        None => writeln!(out, "  leaf records     none (a file before version 3)")?,
     }
     writeln!(out, "  build parameters")?;
     for (k, v) in &r.params {

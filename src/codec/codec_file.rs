@@ -15,16 +15,17 @@ use super::codec_bounds::BoundsGrid;
 use super::codec_tree::{Coding, DecodeLimits, decode, encode};
 use crate::geom::cell::{Cell, DIMS};
 use crate::geom::{Aabb, Frame};
-use crate::tree::VisTree;
+use crate::tree::{LeafRecord, VisTree};
 
 /// The first 8 bytes of every `.v5d` file: a non-ASCII byte, "V5D", CR LF,
 /// EOF, LF (after PNG's: catches text-mode mangling and truncated
 /// transfers).
 pub const MAGIC: [u8; 8] = [0x89, b'V', b'5', b'D', b'\r', b'\n', 0x1a, b'\n'];
 
-/// The format version this code writes. It reads this one and version 1
-/// (which has no frame origin: its trees are in world coordinates).
-pub const VERSION: u16 = 2;
+/// The format version this code writes. It reads this one, version 2
+/// (no leaf records) and version 1 (which has no frame origin either: its
+/// trees are in world coordinates).
+pub const VERSION: u16 = 3;
 
 /// The size of the fixed header of a file of `version`, before the
 /// parameters: version 2 added the frame origin (three f64) and the grid
@@ -40,10 +41,16 @@ const fn min_object_len(version: u16) -> usize {
     if version >= 2 { 4 + 12 + 2 } else { 4 + 2 }
 }
 
+/// What follows the object table in a file of `version`, at the least:
+/// the tree's bit length and (version 3) the leaf records' byte length.
+const fn min_tail_len(version: u16) -> usize {
+    if version >= 3 { 8 + 4 } else { 8 }
+}
+
 /// The smallest possible file of the version written: the fixed header,
-/// empty parameters, no objects, the bit length, no tree bytes, the
-/// checksum. (A version 1 file may be 24 bytes shorter.)
-pub const MIN_FILE_LEN: usize = fixed_len(VERSION) + 8 + 4;
+/// empty parameters, no objects, the bit length, no tree bytes, no leaf
+/// records, the checksum. (Version 1 and 2 files may be shorter.)
+pub const MIN_FILE_LEN: usize = fixed_len(VERSION) + min_tail_len(VERSION) + 4;
 
 /// One object of the file's object table.
 #[derive(Clone, Debug, PartialEq)]
@@ -216,9 +223,75 @@ pub fn write_file(file: &V5dFile) -> Vec<u8> {
     let (bits, _) = encode(tree, file.coding);
     out.extend_from_slice(&bits.bit_len().to_le_bytes());
     out.extend_from_slice(&bits.into_bytes());
+    let mut records = Vec::new();
+    for r in tree.leaf_records().unwrap_or_default() {
+        for v in [r.rejected, r.fewest_rays, r.undecided] {
+            put_varint(&mut records, v);
+        }
+    }
+    out.extend_from_slice(&(records.len() as u32).to_le_bytes());
+    out.extend_from_slice(&records);
     let crc = crc32(&out);
     out.extend_from_slice(&crc.to_le_bytes());
     out
+}
+
+/// Appends `v` as LEB128: 7 bits a byte, low first, the high bit set on
+/// every byte but the last.
+fn put_varint(out: &mut Vec<u8>, mut v: u32) {
+    while v >= 0x80 {
+        out.push((v as u8) | 0x80);
+        v >>= 7;
+    }
+    out.push(v as u8);
+}
+
+/// Reads the leaf records of a file whose header says `leaves` leaves:
+/// exactly `leaves` records of three LEB128 u32 each, filling `bytes`.
+fn read_leaf_records(bytes: &[u8], leaves: usize) -> Result<Vec<LeafRecord>, CodecError> {
+    // Each record takes at least 3 bytes: bound the count first.
+    if leaves > bytes.len() / 3 {
+        return Err(CodecError::Corrupt(format!(
+            "{leaves} leaf records cannot fit in {} bytes",
+            bytes.len()
+        )));
+    }
+    let mut pos = 0;
+    let mut next = |what: &str| -> Result<u32, CodecError> {
+        let mut v: u64 = 0;
+        for shift in (0..35).step_by(7) {
+            let Some(&b) = bytes.get(pos) else {
+                return Err(CodecError::Corrupt(format!(
+                    "the leaf records end in the middle of {what}"
+                )));
+            };
+            pos += 1;
+            v |= u64::from(b & 0x7f) << shift;
+            if b & 0x80 == 0 {
+                return u32::try_from(v).map_err(|_| {
+                    CodecError::Corrupt(format!("a leaf record's {what} is over 32 bits"))
+                });
+            }
+        }
+        Err(CodecError::Corrupt(format!(
+            "a leaf record's {what} is over 5 bytes"
+        )))
+    };
+    let mut records = Vec::with_capacity(leaves);
+    for _ in 0..leaves {
+        records.push(LeafRecord {
+            rejected: next("rejected count")?,
+            fewest_rays: next("fewest rays")?,
+            undecided: next("undecided count")?,
+        });
+    }
+    if pos != bytes.len() {
+        return Err(CodecError::Corrupt(format!(
+            "{} bytes are left over after the {leaves} leaf records",
+            bytes.len() - pos
+        )));
+    }
+    Ok(records)
 }
 
 /// A cursor over the file's bytes whose every read is checked.
@@ -285,7 +358,7 @@ pub fn read_file(bytes: &[u8], limits: ReadLimits) -> Result<V5dFile, CodecError
     if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
         return Err(CodecError::NotV5d);
     }
-    let smallest = |version| fixed_len(version) + 8 + 4;
+    let smallest = |version| fixed_len(version) + min_tail_len(version) + 4;
     if bytes.len() < smallest(1) {
         return Err(CodecError::Truncated(format!(
             "{} bytes, but the smallest .v5d file has {}",
@@ -436,7 +509,12 @@ fn parse_body(body: &[u8], version: u16, limits: ReadLimits) -> Result<V5dFile, 
     }
     let bits = c.u64("the tree's bit length")?;
     let tree_bytes = bits.div_ceil(8);
-    if tree_bytes != c.left() as u64 {
+    // Version 3 has the leaf records' length (4 bytes) and the records
+    // after the tree.
+    let after = if version >= 3 { 4 } else { 0 };
+    if tree_bytes > (c.left() as u64).saturating_sub(after)
+        || (version < 3 && tree_bytes != c.left() as u64)
+    {
         return Err(CodecError::Corrupt(format!(
             "the tree has {bits} bits but {} bytes follow",
             c.left()
@@ -463,6 +541,24 @@ fn parse_body(body: &[u8], version: u16, limits: ReadLimits) -> Result<V5dFile, 
             tree.nodes().len()
         )));
     }
+    let records = if version >= 3 {
+        let len = c.u32("the leaf records' length")? as usize;
+        if len != c.left() {
+            return Err(CodecError::Corrupt(format!(
+                "the leaf records take {len} bytes but {} follow",
+                c.left()
+            )));
+        }
+        let bytes = c.take(len, "the leaf records")?;
+        (len > 0)
+            .then(|| read_leaf_records(bytes, leaves))
+            .transpose()?
+    } else {
+        None
+    };
+    let tree = tree
+        .with_leaf_records(records)
+        .map_err(|_| CodecError::Corrupt("the leaf records do not match the leaves".into()))?;
     Ok(V5dFile {
         coding,
         fingerprint,

@@ -426,3 +426,86 @@ fn culling_keeps_what_a_renderers_edge_pixels_reach() {
     }
     assert!(checked > 500, "{checked}");
 }
+
+/// Version 3 keeps a record per leaf (how sure its set is): built trees
+/// have one, it survives the file and `Pvs` answers it for the leaf a point
+/// is in; a version 2 file (no records) still reads, without them; records
+/// that lie are refused.
+#[test]
+fn leaf_records_round_trip_and_lies_are_refused() {
+    let (s, _, tree) = apartment();
+    let records = tree.leaf_records().expect("a built tree has records");
+    assert_eq!(records.len(), tree.leaf_count());
+    let sprt = BuildParams::default().sprt.misses_to_invisible();
+    for r in records {
+        // A rejection rests on at least the SPRT's run of misses.
+        assert_eq!(r.rejected == 0, r.fewest_rays == 0, "{r:?}");
+        assert!(r.rejected == 0 || r.fewest_rays >= sprt, "{r:?}");
+    }
+    assert!(records.iter().any(|r| r.rejected > 0));
+    let risk = records
+        .iter()
+        .map(|r| r.largest_missed_fraction(0.95))
+        .fold(0.0, f64::max);
+    assert!(risk > 0.0 && risk < 0.05, "{risk}");
+    let good = file_bytes(None);
+    let f = codec::read_file(&good, ReadLimits::default()).unwrap();
+    assert_eq!(f.tree.leaf_records(), Some(records));
+    let pvs = Pvs::from_bytes(&good).unwrap();
+    assert_eq!(pvs.leaf_records().as_deref(), Some(records));
+    for leaf in tree.leaves().iter().step_by(37) {
+        let p = leaf.cell.sample([0.5; DIMS]);
+        // Records are in preorder: the leaves among the nodes before it.
+        let k = tree.nodes()[..leaf.node]
+            .iter()
+            .filter(|n| n.split.is_none())
+            .count();
+        assert_eq!(pvs.leaf_record(p), Some(records[k]));
+    }
+    // The same file as version 2: the records' length field and the
+    // records go, the version says 2.
+    // The records and their u32 length are the last bytes before the
+    // checksum: three LEB128 numbers a leaf.
+    let varint_len = |v: u32| (32 - v.leading_zeros()).div_ceil(7).max(1) as usize;
+    let records_len = 4 + records
+        .iter()
+        .map(|r| varint_len(r.rejected) + varint_len(r.fewest_rays) + varint_len(r.undecided))
+        .sum::<usize>();
+    let mut v2 = good[..good.len() - 4 - records_len].to_vec();
+    v2[8..10].copy_from_slice(&2u16.to_le_bytes());
+    let crc = codec::crc32(&v2);
+    v2.extend_from_slice(&crc.to_le_bytes());
+    let old = codec::read_file(&v2, ReadLimits::default()).unwrap();
+    assert_eq!(old.tree.leaf_records(), None);
+    assert_eq!(old.tree.nodes(), tree.nodes());
+    let pvs2 = Pvs::from_bytes(&v2).unwrap();
+    assert_eq!(pvs2.leaf_record(tree.root_cell().sample([0.5; DIMS])), None);
+    // Records that lie: a count that does not match, a varint that runs
+    // off the end, bytes left over.
+    let with_records = |records: &[u8]| {
+        let mut b = good[..good.len() - 4 - records_len].to_vec();
+        b.extend_from_slice(&(records.len() as u32).to_le_bytes());
+        b.extend_from_slice(records);
+        let crc = codec::crc32(&b);
+        b.extend_from_slice(&crc.to_le_bytes());
+        codec::read_file(&b, ReadLimits::default())
+    };
+    let e = with_records(&[1, 2, 3]).unwrap_err();
+    assert!(e.to_string().contains("leaf records"), "{e}");
+    let mut long = vec![0u8; 3 * tree.leaf_count()];
+    *long.last_mut().unwrap() = 0x80;
+    let e = with_records(&long).unwrap_err();
+    assert!(e.to_string().contains("leaf records end"), "{e}");
+    let mut over = vec![0u8; 3 * tree.leaf_count() + 1];
+    over[0] = 0;
+    let e = with_records(&over).unwrap_err();
+    assert!(e.to_string().contains("left over"), "{e}");
+    let mut huge = vec![0u8; 3 * tree.leaf_count() + 4];
+    huge[..5].copy_from_slice(&[0xff, 0xff, 0xff, 0xff, 0x7f]);
+    let e = with_records(&huge).unwrap_err();
+    assert!(e.to_string().contains("over 32 bits"), "{e}");
+    // No records at all is a valid version 3 file.
+    let none = with_records(&[]).unwrap();
+    assert_eq!(none.tree.leaf_records(), None);
+    assert_eq!(none.objects.len(), s.objects().len());
+}
