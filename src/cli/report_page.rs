@@ -404,12 +404,19 @@ fn write_files(dir: &Path, r: &ReportJson, e: &Experiment) -> Result<()> {
         .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
     let json = serde_json::to_vec_pretty(r)?;
     // The tables, shared by the Markdown and the page.
-    let mut rows: Vec<[String; 11]> = Vec::new();
+    let mut rows: Vec<[String; 12]> = Vec::new();
+    let seen_per_view =
+        r.views.iter().map(|v| v.seen_objects).sum::<usize>() as f64 / r.views.len().max(1) as f64;
     for m in &r.methods {
         let s = &m.summary;
         rows.push([
             m.name.to_string(),
             format!("{:.1}", s.mean_objects),
+            if seen_per_view > 0.0 {
+                format!("{:.2}", s.mean_objects / seen_per_view)
+            } else {
+                "n/a".into()
+            },
             s.max_objects.to_string(),
             format!("{:.0}", s.mean_triangles),
             s.max_triangles.to_string(),
@@ -434,6 +441,7 @@ fn write_files(dir: &Path, r: &ReportJson, e: &Experiment) -> Result<()> {
     let head = [
         "method",
         "objects / view",
+        "drawn / seen",
         "max",
         "triangles / view",
         "max",
@@ -449,7 +457,8 @@ fn write_files(dir: &Path, r: &ReportJson, e: &Experiment) -> Result<()> {
         (a.0 + c.lazy_pixel_queries, a.1 + c.busy_pixel_queries)
     });
     let legend = format!(
-        "Geometry ratio: triangles after view-frustum culling over the method's, summed over the views. \
+        "Drawn / seen: the objects the method draws per view over those the ground truth sees per view, \
+         on average (overdraw; 1 is tight). Geometry ratio: triangles after view-frustum culling over the method's, summed over the views. \
          Pixel error: the share of a view's hit pixels whose object the method does not draw, averaged over the \
          {} views that show something ({} show nothing); worst view: the largest, and which view. Missed objects: \
          objects seen but not drawn, counted per view (an object missed in 3 views counts 3), and how many distinct. \
