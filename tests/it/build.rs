@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use glam::Vec3;
-use vis5d::builder::{BuildParams, VerifyParams, build, pixel_error, summarize};
+use vis5d::builder::{BuildParams, BuildStats, VerifyParams, build, pixel_error, summarize};
 use vis5d::geom::Aabb;
 use vis5d::geom::cell::{DIMS, THETA};
 use vis5d::scene::procedural::shapes::push_box;
@@ -300,30 +300,43 @@ fn leaves_find_what_their_ancestors_dropped() {
 }
 
 fn retest_only_adds(name: &str) {
-    let s = scene::load(crate::committed(&format!("{name}.obj"))).unwrap();
-    let tracer = Tracer::new(&s);
-    let run = |retest_rays| {
-        let params = BuildParams {
-            retest_rays,
-            ..BuildParams::default()
-        };
-        let (tree, stats) = build(&s, &tracer, &params, &|_| {}).unwrap();
-        tree.validate().unwrap();
-        (tree, stats.decisions)
+    let none = BuildParams {
+        retest_rays: 0,
+        ..BuildParams::default()
     };
-    let (without, d0) = run(0);
-    let (with, d1) = run(BuildParams::default().retest_rays);
+    let (d0, d1) = only_adds(name, &none, &BuildParams::default());
+    let (d0, d1) = (d0.decisions, d1.decisions);
     assert_eq!((d0.retested, d0.retest_found), (0, 0));
     assert!(d1.retested > 0 && d1.retest_found > 0, "{name}: {d1:?}");
-    assert_eq!(without.nodes().len(), with.nodes().len());
+}
+
+/// Builds committed scene `name` with `without` and with `with`, which
+/// must differ only by something that adds objects: asserts the same
+/// cells, every set of `with` a superset of `without`'s, and some gained.
+/// Returns both builds' stats.
+fn only_adds(name: &str, without: &BuildParams, with: &BuildParams) -> (BuildStats, BuildStats) {
+    let s = scene::load(crate::committed(&format!("{name}.obj"))).unwrap();
+    let tracer = Tracer::new(&s);
+    let run = |params: &BuildParams| {
+        let (tree, stats) = build(&s, &tracer, params, &|_| {}).unwrap();
+        tree.validate().unwrap();
+        (tree, stats)
+    };
+    let (a, s0) = run(without);
+    let (b, s1) = run(with);
+    assert_eq!(a.nodes().len(), b.nodes().len());
     let mut gained = 0;
-    for (a, b) in without.nodes().iter().zip(with.nodes()) {
+    for (a, b) in a.nodes().iter().zip(b.nodes()) {
         assert_eq!(a.split, b.split, "the same cells");
-        assert!(a.set.is_subset(&b.set), "{name}: a retest only adds");
+        assert!(a.set.is_subset(&b.set), "{name}: only adds");
         gained += b.set.count() - a.set.count();
     }
     assert!(gained > 0, "{name}");
-    eprintln!("{name}: {gained} (node, object) pairs gained; {d1:?}");
+    eprintln!(
+        "{name}: {gained} (node, object) pairs gained; {:?}",
+        s1.decisions
+    );
+    (s0, s1)
 }
 
 /// Edge rays (GVS's border sampling at the object level) only add objects
@@ -332,27 +345,11 @@ fn retest_only_adds(name: &str) {
 /// over each other, some found.
 #[test]
 fn edge_rays_only_add_what_rays_hit() {
-    let s = scene::load(crate::committed("city.obj")).unwrap();
-    let tracer = Tracer::new(&s);
-    let run = |edge_rays| {
-        let params = BuildParams {
-            edge_rays,
-            ..BuildParams::default()
-        };
-        let (tree, stats) = build(&s, &tracer, &params, &|_| {}).unwrap();
-        tree.validate().unwrap();
-        (tree, stats)
+    let none = BuildParams {
+        edge_rays: 0,
+        ..BuildParams::default()
     };
-    let (without, s0) = run(0);
-    let (with, s1) = run(BuildParams::default().edge_rays);
+    let (s0, s1) = only_adds("city", &none, &BuildParams::default());
     assert_eq!((s0.edge_rays, s0.decisions.edge_found), (0, 0));
     assert!(s1.edge_rays > 0 && s1.decisions.edge_found > 0, "{s1:?}");
-    assert_eq!(without.nodes().len(), with.nodes().len());
-    let mut gained = 0;
-    for (a, b) in without.nodes().iter().zip(with.nodes()) {
-        assert_eq!(a.split, b.split, "the same cells");
-        assert!(a.set.is_subset(&b.set), "edge rays only add");
-        gained += b.set.count() - a.set.count();
-    }
-    assert!(gained > 0);
 }
