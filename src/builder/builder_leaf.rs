@@ -2,8 +2,8 @@
 //! by the cell's cached rays, plus those the SPRT does not reject.
 //!
 //! Each undecided candidate gets object samples ([`AdaptiveSampler`]:
-//! origin first or target first, whichever is rejected less) from its own
-//! random stream, in rounds: every round draws a batch per undecided
+//! origin first or aimed target first, whichever is rejected less) from
+//! its own random stream, in rounds: every round draws a batch per undecided
 //! object (4, doubling up to 256), traces all of them in one parallel
 //! batch, then goes through each object's outcomes in order. Any ray's
 //! closest hit proves that object visible, whoever's sample it was, so
