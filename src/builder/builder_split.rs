@@ -75,8 +75,7 @@ pub(super) fn best_split(ctx: &Ctx, cell: &Cell, cache: &[CachedRay]) -> Option<
             codes.push(1 << (q - 1));
             for o in ctx.scene.objects() {
                 let b = o.bounds;
-                let overlaps = b.min.cmple(space.max).all() && b.max.cmpge(space.min).all();
-                if !overlaps {
+                if !b.overlaps(&space) {
                     continue;
                 }
                 for v in [b.min[d], b.max[d]] {

@@ -49,8 +49,8 @@ pub use builder_verify::{PixelError, VerifyParams, pixel_error};
 
 use crate::bitset::ObjectSet;
 use crate::codec::{Coding, FileObject, V5dFile, code_size};
-use crate::geom::Aabb;
 use crate::geom::cell::{Cell, THETA};
+use crate::geom::{Aabb, BoxTree};
 use crate::scene::Scene;
 use crate::sprt::{SprtError, SprtParams};
 use crate::trace::Tracer;
@@ -575,54 +575,22 @@ pub fn build(
 /// order. (Grown by half, the apartment block retested 3.4 times as many
 /// objects, 39.7 M rays against 30.6 M, for the same pixel errors on the
 /// office, city, duplex and FZK-Haus; notes/build.md.)
-/// Objects are binned on a grid over the scene so that the work grows with
-/// the pairs that are near, not with the square of the objects.
+/// The grown boxes are queried in a [`BoxTree`] of themselves, so that the
+/// work grows with the pairs that are near, not with the square of the
+/// objects.
 pub(crate) fn neighbours(scene: &Scene) -> Vec<Vec<u32>> {
     let grown: Vec<Aabb> = scene
         .objects()
         .iter()
         .map(|o| o.bounds.expanded(0.1 * o.bounds.diagonal()))
         .collect();
-    let n = grown.len();
-    let space = grown.iter().fold(Aabb::EMPTY, |u, b| u.union(b));
-    let side = ((n as f64).cbrt().ceil() as usize).clamp(1, 64);
-    let size = space.size().max(glam::Vec3::splat(f32::MIN_POSITIVE));
-    let cell_of = |p: glam::Vec3| {
-        let t = ((p - space.min) / size * side as f32).floor();
-        t.clamp(glam::Vec3::ZERO, glam::Vec3::splat((side - 1) as f32))
-            .as_uvec3()
-    };
-    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); side * side * side];
-    let index = |x: u32, y: u32, z: u32| (x as usize * side + y as usize) * side + z as usize;
+    let tree = BoxTree::new(&grown);
+    let mut out = vec![Vec::new(); grown.len()];
     for (i, b) in grown.iter().enumerate() {
-        let (lo, hi) = (cell_of(b.min), cell_of(b.max));
-        for x in lo.x..=hi.x {
-            for y in lo.y..=hi.y {
-                for z in lo.z..=hi.z {
-                    bins[index(x, y, z)].push(i as u32);
-                }
-            }
-        }
-    }
-    let overlap = |a: &Aabb, b: &Aabb| a.min.cmple(b.max).all() && b.min.cmple(a.max).all();
-    let mut out = vec![Vec::new(); n];
-    let mut seen = vec![u32::MAX; n];
-    for (i, b) in grown.iter().enumerate() {
-        let (lo, hi) = (cell_of(b.min), cell_of(b.max));
-        for x in lo.x..=hi.x {
-            for y in lo.y..=hi.y {
-                for z in lo.z..=hi.z {
-                    for &j in &bins[index(x, y, z)] {
-                        let ju = j as usize;
-                        if ju != i && seen[ju] != i as u32 && overlap(b, &grown[ju]) {
-                            seen[ju] = i as u32;
-                            out[i].push(j);
-                        }
-                    }
-                }
-            }
-        }
-        out[i].sort_unstable();
+        let near = &mut out[i];
+        tree.overlapping(b, near);
+        near.retain(|&j| j as usize != i);
+        near.sort_unstable();
     }
     out
 }

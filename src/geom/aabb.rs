@@ -47,6 +47,11 @@ impl Aabb {
         b
     }
 
+    /// Whether the closed boxes share a point (touching counts).
+    pub fn overlaps(&self, other: &Aabb) -> bool {
+        self.min.cmple(other.max).all() && other.min.cmple(self.max).all()
+    }
+
     /// Whether the box holds no point.
     pub fn is_empty(&self) -> bool {
         !(self.min.cmple(self.max).all())

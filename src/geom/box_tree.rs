@@ -81,6 +81,25 @@ impl BoxTree {
         }
     }
 
+    /// Appends to `out` every object whose box overlaps `b` (closed boxes:
+    /// touching counts), in the tree's order.
+    pub fn overlapping(&self, b: &Aabb, out: &mut Vec<u32>) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stack = vec![0u32];
+        while let Some(k) = stack.pop() {
+            let node = &self.nodes[k as usize];
+            if !node.bounds().overlaps(b) {
+                continue;
+            }
+            match node {
+                BoxNode::Object { object, .. } => out.push(*object),
+                BoxNode::Inner { children, .. } => stack.extend_from_slice(children),
+            }
+        }
+    }
+
     /// Marks every object under node `k`.
     fn mark_all(&self, k: u32, out: &mut ObjectSet) {
         let mut stack = vec![k];
