@@ -11,11 +11,17 @@
 //! seen only misses, and what the SPRT says after r misses in a row is
 //! fixed by its parameters, so it is computed once
 //! ([`crate::sprt::SprtParams::misses_decision`]) and the rounds count
-//! misses. A candidate is decided:
+//! misses. The rounds are traced whole, so "invisible" means every ray of
+//! the rounds that reach the SPRT's run missed ([`misses_needed`]: 252
+//! rays for the default 129 misses; notes/build.md measured what that
+//! buys). A candidate's count starts at the misses of its own samples
+//! that the cell's ancestors traced inside the cell ([`TracedSample`]),
+//! and its rounds stop at the misses it needs. A candidate is decided:
 //! - invisible by geometry, before any ray, when no direction of the cell
 //!   reaches its bounding box ([`reachable`]);
 //! - visible as soon as a ray hits it;
-//! - invisible when the SPRT's odds fall below B and, in an internal node,
+//! - invisible when the run of misses is long enough for the SPRT (its
+//!   odds below B, the rounds traced whole) and, in an internal node,
 //!   for an object near one the cell's rays hit, after at least
 //!   `internal_miss_factor` times the misses the SPRT needs
 //!   on its own (an object dropped there is lost to the whole subtree);
@@ -36,16 +42,110 @@
 //! The result does not depend on thread count: streams are seeded by
 //! (node seed, object) and the rounds are processed in object order.
 
+use glam::Vec3;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
 use super::builder_node::Ctx;
 use super::{BuildStats, mix};
 use crate::bitset::ObjectSet;
-use crate::geom::cell::Cell;
+use crate::geom::cell::{Cell, DIMS, direction_to_angles};
 use crate::sample::{AdaptiveSampler, reachable};
 use crate::sprt::Decision;
 use crate::trace::Ray;
+
+/// An object sample a node traced, handed down to the child it falls in
+/// (by its 5D point, as the cached rays are): there it is a ray of the
+/// child, so its closest hit proves that object visible, and a miss of
+/// its owner counts as a miss of the owner's test in the child.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct TracedSample {
+    /// The segment's start and the angles of its direction: (x, y, z,
+    /// theta, phi), a point of the node's cell.
+    pub p: [f32; DIMS],
+    /// The object whose sample it was.
+    pub owner: u32,
+    /// The object its closest hit is on (`u32::MAX` for none).
+    pub hit: u32,
+}
+
+impl TracedSample {
+    /// The object its closest hit is on.
+    pub fn hit(&self) -> Option<u32> {
+        (self.hit != u32::MAX).then_some(self.hit)
+    }
+}
+
+/// An object sample as a node traces it, before it is handed down: the
+/// angles of its direction are computed only for the samples worth
+/// handing down (most are misses of objects the node drops).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct OwnSample {
+    origin: Vec3,
+    dir: Vec3,
+    owner: u32,
+    /// As [`TracedSample::hit`].
+    hit: u32,
+}
+
+impl OwnSample {
+    /// The sample of `owner` along `ray`, whose closest hit is on `hit`.
+    pub fn new(ray: &Ray, owner: u32, hit: Option<u32>) -> Self {
+        Self {
+            origin: ray.origin,
+            dir: ray.dir,
+            owner,
+            hit: hit.unwrap_or(u32::MAX),
+        }
+    }
+
+    /// Its point in the cell.
+    fn traced(&self) -> TracedSample {
+        let (theta, phi) = direction_to_angles(self.dir);
+        let o = self.origin;
+        TracedSample {
+            p: [o.x, o.y, o.z, theta, phi],
+            owner: self.owner,
+            hit: self.hit,
+        }
+    }
+}
+
+/// The samples worth handing down from a node whose set is `set` (a hit,
+/// or a miss of an object its children test), of those it inherited and
+/// its own, split by the node's cut at `value` in dimension `dim` as the
+/// cached rays are.
+pub(super) fn hand_down(
+    inherited: Vec<TracedSample>,
+    own: Vec<OwnSample>,
+    set: &ObjectSet,
+    dim: usize,
+    value: f32,
+) -> (Vec<TracedSample>, Vec<TracedSample>) {
+    let worth = |hit: u32, owner: u32| hit != u32::MAX || set.contains(owner as usize);
+    inherited
+        .into_iter()
+        .filter(|s| worth(s.hit, s.owner))
+        .chain(
+            own.iter()
+                .filter(|s| worth(s.hit, s.owner))
+                .map(OwnSample::traced),
+        )
+        .partition(|s| s.p[dim] < value)
+}
+
+/// The misses in a row after which the builder calls an object invisible,
+/// for a test that needs `stop`: the rounds (4, 8, ..., 256 samples) are
+/// traced whole, so an object is only called invisible when every ray of
+/// the rounds that reach `stop` missed it (252 rays for the default 129).
+pub(super) fn misses_needed(stop: u32) -> u32 {
+    let (mut sum, mut round) = (0u32, 4u32);
+    while sum < stop {
+        sum = sum.saturating_add(round);
+        round = (round * 2).min(256);
+    }
+    sum
+}
 
 /// One candidate under test.
 struct Pending {
@@ -54,8 +154,9 @@ struct Pending {
     retest: bool,
     /// Rays taken that did not hit it.
     misses: u32,
-    /// The fewest misses before it may be called invisible.
-    min_misses: u32,
+    /// The misses after which it is called invisible (when the SPRT's
+    /// verdict on misses is "invisible").
+    need: u32,
     rng: Pcg64,
     sampler: AdaptiveSampler,
     rejected: u32,
@@ -80,6 +181,12 @@ pub(super) struct Tests<'a> {
     /// The objects near one the cell's rays hit: `min_misses` applies to
     /// these only (the others need the SPRT's own misses).
     pub near: &'a ObjectSet,
+    /// Per object, the misses of its own samples that an ancestor traced
+    /// in this cell (see [`TracedSample`]); empty when none are handed
+    /// down.
+    pub credit: &'a [u32],
+    /// Keep the candidates' traced samples for the children.
+    pub keep_samples: bool,
 }
 
 /// What a cell's tests decided.
@@ -94,6 +201,8 @@ pub(super) struct Decided {
     pub fewest_misses: u32,
     /// Candidates kept without a decision (rejected samples, ray cap).
     pub undecided: u32,
+    /// The candidates' samples traced here (when `keep_samples`).
+    pub samples: Vec<OwnSample>,
 }
 
 /// Tests the candidates and retests of `cell` (see the module docs).
@@ -109,6 +218,7 @@ pub(super) fn visible_set(
         rejected: ObjectSet::new(tests.candidates.capacity()),
         fewest_misses: u32::MAX,
         undecided: 0,
+        samples: Vec::new(),
     };
     stats.decisions.proven_by_hit += d.set.count() as u64;
     // The candidates first, exactly as without retests; then the retests,
@@ -131,22 +241,38 @@ pub(super) fn visible_set(
             if retest {
                 stats.decisions.retested += 1;
             }
+            let min_misses = if tests.near.contains(o) {
+                tests.min_misses
+            } else {
+                0
+            };
+            let credit = if retest {
+                0
+            } else {
+                tests.credit.get(o).copied().unwrap_or(0)
+            };
+            let need = misses_needed(ctx.misses_decision.0.max(min_misses));
+            if credit >= need && ctx.misses_decision.1 == Decision::Invisible {
+                // Decided by the ancestors' samples alone.
+                stats.decisions.sprt_invisible += 1;
+                stats.decisions.decided_by_ancestors += 1;
+                d.rejected.insert(o);
+                d.fewest_misses = d.fewest_misses.min(credit);
+                continue;
+            }
             pending.push(Pending {
                 object: o,
                 retest,
-                misses: 0,
-                min_misses: if tests.near.contains(o) {
-                    tests.min_misses
-                } else {
-                    0
-                },
+                misses: credit,
+                need,
                 rng: Pcg64::seed_from_u64(mix(if retest { retest_seed } else { seed }, o as u64)),
                 sampler: AdaptiveSampler::new(cell),
                 rejected: 0,
                 done: false,
             });
         }
-        run(ctx, cell, pending, &mut d, stats);
+        let keep = tests.keep_samples && !retest;
+        run(ctx, cell, pending, &mut d, keep, stats);
     }
     // An object the SPRT dropped may have been hit by a later ray.
     d.rejected.subtract(&d.set);
@@ -156,7 +282,14 @@ pub(super) fn visible_set(
 /// Samples every object of `pending` until it is decided, in rounds (see
 /// the module docs), adding to `d.set` what rays prove and to
 /// `d.rejected` the candidates the SPRT calls invisible.
-fn run(ctx: &Ctx, cell: &Cell, mut pending: Vec<Pending>, d: &mut Decided, stats: &mut BuildStats) {
+fn run(
+    ctx: &Ctx,
+    cell: &Cell,
+    mut pending: Vec<Pending>,
+    d: &mut Decided,
+    keep: bool,
+    stats: &mut BuildStats,
+) {
     let set = &mut d.set;
     let params = ctx.params;
     // Retests nearly all end in their whole budget of misses: one round.
@@ -174,8 +307,12 @@ fn run(ctx: &Ctx, cell: &Cell, mut pending: Vec<Pending>, d: &mut Decided, stats
         for (k, p) in pending.iter_mut().enumerate() {
             let mut drawn = 0;
             // A retest needs no more than its budget.
+            // (and a candidate credited with an ancestor's misses no more
+            // than it still needs).
             let want = if p.retest {
                 batch.min(params.retest_rays.saturating_sub(p.misses))
+            } else if ctx.misses_decision.1 == Decision::Invisible {
+                batch.min(p.need.saturating_sub(p.misses))
             } else {
                 batch
             };
@@ -198,6 +335,13 @@ fn run(ctx: &Ctx, cell: &Cell, mut pending: Vec<Pending>, d: &mut Decided, stats
         }
         let hits = ctx.trace(&rays, stats);
         stats.object_rays += rays.len() as u64;
+        if keep {
+            d.samples.extend(
+                rays.iter().zip(&owner).zip(&hits).map(|((r, &k), &hit)| {
+                    OwnSample::new(r, pending[k as usize].object as u32, hit)
+                }),
+            );
+        }
         // Proofs first: whatever any ray hit is visible.
         for h in hits.iter().flatten() {
             set.insert(*h as usize);
@@ -229,8 +373,8 @@ fn run(ctx: &Ctx, cell: &Cell, mut pending: Vec<Pending>, d: &mut Decided, stats
                 }
                 let (stop, decision) = ctx.misses_decision;
                 match decision {
+                    Decision::Invisible if p.misses < p.need => {}
                     _ if p.misses < stop => {}
-                    Decision::Invisible if p.misses < p.min_misses => {}
                     Decision::Undecided => unreachable!("the test always ends"),
                     Decision::Invisible => {
                         stats.decisions.sprt_invisible += 1;
@@ -270,5 +414,76 @@ fn run(ctx: &Ctx, cell: &Cell, mut pending: Vec<Pending>, d: &mut Decided, stats
         }
         pending.retain(|p| !p.done);
         batch = (batch * 2).min(256);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::cell::angles_to_direction;
+    use rand::RngExt;
+
+    #[test]
+    fn the_run_of_misses_is_whole_rounds() {
+        // 4 + 8 + ... + 128 = 252 >= 129; + 256 = 508 >= 258.
+        assert_eq!(misses_needed(129), 252);
+        assert_eq!(misses_needed(258), 508);
+        assert_eq!(misses_needed(0), 0);
+        assert_eq!(misses_needed(1), 4);
+        assert_eq!(misses_needed(4), 4);
+        assert_eq!(misses_needed(5), 12);
+        // Past 256 the rounds stay at 256.
+        assert_eq!(misses_needed(509), 764);
+        assert_eq!(misses_needed(u32::MAX), u32::MAX);
+    }
+
+    /// Every sample handed down lies in the child it is handed to (its
+    /// origin in the child's box, its direction's angles in the child's
+    /// angular box), for cuts in each of the five dimensions; misses of
+    /// objects the children do not test are dropped, hits are kept.
+    #[test]
+    fn samples_go_to_the_child_they_lie_in() {
+        let cell = Cell {
+            lo: [-2.0, 1.0, 0.5, -0.7, 0.4],
+            hi: [3.0, 4.0, 2.0, 1.9, 2.6],
+        };
+        let mut rng = Pcg64::seed_from_u64(7);
+        let samples: Vec<OwnSample> = (0..4000)
+            .map(|i| {
+                let u: [f32; DIMS] = std::array::from_fn(|_| rng.random_range(0.001..0.999));
+                let p = cell.sample(u);
+                let length = rng.random_range(0.1f32..30.0);
+                let ray = Ray::new(
+                    Vec3::new(p[0], p[1], p[2]),
+                    angles_to_direction(p[3], p[4]) * length,
+                );
+                OwnSample::new(&ray, i % 5, [None, Some(i % 5), Some(9)][i as usize % 3])
+            })
+            .collect();
+        // The children test objects 0 and 1 only.
+        let mut set = ObjectSet::new(10);
+        set.insert(0);
+        set.insert(1);
+        let worth = |s: &TracedSample| s.hit().is_some() || s.owner < 2;
+        let traced: Vec<TracedSample> = samples.iter().map(OwnSample::traced).collect();
+        for dim in 0..DIMS {
+            let value = cell.lo[dim] + 0.37 * cell.width(dim);
+            let (below_cell, above_cell) = cell.split(dim, value);
+            // Half of them as inherited, half as the node's own.
+            let (inherited, own) = (traced[..2000].to_vec(), samples[2000..].to_vec());
+            let (below, above) = hand_down(inherited, own, &set, dim, value);
+            assert_eq!(
+                below.len() + above.len(),
+                traced.iter().filter(|s| worth(s)).count(),
+                "dim {dim}"
+            );
+            assert!(!below.is_empty() && !above.is_empty(), "dim {dim}");
+            for (child, cell) in [(&below, below_cell), (&above, above_cell)] {
+                for s in child {
+                    assert!(worth(s));
+                    assert!(cell.contains(s.p), "dim {dim}: {:?} not in {cell:?}", s.p);
+                }
+            }
+        }
     }
 }

@@ -7,6 +7,7 @@ use std::time::Instant;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
+use super::builder_leaf::TracedSample;
 use super::{BuildParams, BuildStats, builder_edges, builder_leaf, builder_split, mix};
 use crate::bitset::ObjectSet;
 use crate::geom::cell::{Cell, DIMS, PHI, THETA, grid_value};
@@ -149,8 +150,9 @@ impl Built {
 }
 
 /// Builds the subtree of `cell`, whose candidates are `candidates`, whose
-/// ancestors' tests called `dropped` invisible (a leaf retests them), and
-/// whose cache so far is `cache` (rays inherited from the parent).
+/// ancestors' tests called `dropped` invisible (a leaf retests them), whose
+/// cache so far is `cache` (rays inherited from the parent) and whose
+/// ancestors' object samples that fall in it are `samples`.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn build_node(
     ctx: &Ctx,
@@ -160,6 +162,7 @@ pub(super) fn build_node(
     candidates: &ObjectSet,
     dropped: &ObjectSet,
     mut cache: Vec<CachedRay>,
+    samples: Vec<TracedSample>,
     stats: &mut BuildStats,
 ) -> Built {
     let params = ctx.params;
@@ -167,6 +170,25 @@ pub(super) fn build_node(
     let mut proven = ObjectSet::new(candidates.capacity());
     for r in &cache {
         if let Some(o) = r.hit {
+            proven.insert(o as usize);
+        }
+    }
+    // The ancestors' object samples are rays of this cell: their hits are
+    // proofs, and their owners' misses count in the owners' tests here.
+    let mut credit = vec![
+        0u32;
+        if samples.is_empty() {
+            0
+        } else {
+            candidates.capacity()
+        }
+    ];
+    for s in &samples {
+        match s.hit() {
+            Some(o) if o == s.owner => {}
+            _ => credit[s.owner as usize] += 1,
+        }
+        if let Some(o) = s.hit() {
             proven.insert(o as usize);
         }
     }
@@ -239,8 +261,11 @@ pub(super) fn build_node(
         proven,
         min_misses,
         near: &near,
+        credit: &credit,
+        keep_samples: split.is_some() && params.inherit_samples,
     };
-    let decided = builder_leaf::visible_set(ctx, &cell, tests, seed, stats);
+    let mut decided = builder_leaf::visible_set(ctx, &cell, tests, seed, stats);
+    let own_samples = std::mem::take(&mut decided.samples);
     let (mut set, rejected) = (decided.set, decided.rejected);
     if split.is_none() {
         builder_edges::edge_rays(ctx, &cell, seed, &cache, &mut set, stats);
@@ -267,6 +292,8 @@ pub(super) fn build_node(
     let (below_cell, above_cell) = cell.split(dim, value);
     let (below_cache, above_cache): (Vec<_>, Vec<_>) =
         cache.into_iter().partition(|r| r.p[dim] < value);
+    let (below_samples, above_samples) =
+        builder_leaf::hand_down(samples, own_samples, &set, dim, value);
     let child_state = NodeState {
         depth: state.depth + 1,
         angular_left: match state.angular_left {
@@ -294,6 +321,7 @@ pub(super) fn build_node(
                 &set,
                 &child_dropped,
                 below_cache,
+                below_samples,
                 &mut below_stats,
             )
         },
@@ -306,6 +334,7 @@ pub(super) fn build_node(
                 &set,
                 &child_dropped,
                 above_cache,
+                above_samples,
                 &mut above_stats,
             )
         },

@@ -6,7 +6,10 @@
 //! 1. top up C's cache of uniform cell rays (those of the parent that fall
 //!    in C are kept: the paper's "re-use rays cast to determine an inner
 //!    node's partitioning", sec. 9) and trace them; every object a cached
-//!    ray hits is proven visible (`builder_node.rs`);
+//!    ray hits is proven visible (`builder_node.rs`). The object samples
+//!    that C's ancestors traced and that fall in C are rays of C too
+//!    ([`BuildParams::inherit_samples`]): what they hit is proven, and
+//!    their owners' misses count in the owners' tests;
 //! 2. decide the other candidates by the SPRT on object samples
 //!    (`builder_leaf.rs`): C's set.
 //!    A leaf then retests objects its ancestors dropped near what its rays
@@ -18,7 +21,7 @@
 //!    "split only if at least 500 polygons are visible"), or when no
 //!    candidate split scores E(A, B) above the threshold
 //!    (`builder_split.rs`); otherwise split, hand each child its half of the
-//!    cache and C's set as candidates, build both in parallel, and make C's
+//!    cache and of the object samples, and C's set as candidates, build both in parallel, and make C's
 //!    set the union of theirs.
 //!
 //! With `spatial_only`, only x, y, z are split, and each final cell is cut
@@ -118,6 +121,10 @@ pub struct BuildParams {
     /// (`builder_edges.rs`, after GVS's adaptive border sampling), to find
     /// objects that peek out from behind nearer ones (0: none).
     pub edge_rays: u32,
+    /// Hand each node's object samples down to the child they fall in
+    /// (their hits prove objects there, their misses count in the child's
+    /// tests), instead of testing every candidate of a child from scratch.
+    pub inherit_samples: bool,
     /// The positions to build for, in the scene's local coordinates
     /// ([`Scene::frame`]; the world's for a scene near the origin); `None`
     /// = the scene's bounding box.
@@ -159,6 +166,7 @@ impl Default for BuildParams {
             rejection_budget: 4096,
             retest_rays: 16,
             edge_rays: 1,
+            inherit_samples: true,
             view_box: None,
             view_grow: 0.0,
             seed: 1,
@@ -367,6 +375,7 @@ impl BuildParams {
             format!("rejection_budget={}", self.rejection_budget),
             format!("retest_rays={}", self.retest_rays),
             format!("edge_rays={}", self.edge_rays),
+            format!("inherit_samples={}", self.inherit_samples),
         ];
         lines.join("\n") + "\n"
     }
@@ -421,6 +430,10 @@ pub struct Decisions {
     pub proven_by_hit: u64,
     /// Declared invisible by the SPRT.
     pub sprt_invisible: u64,
+    /// Of those, decided by the misses of object samples that ancestors
+    /// traced inside the cell alone, without a ray of the cell's own
+    /// ([`BuildParams::inherit_samples`]).
+    pub decided_by_ancestors: u64,
     /// The SPRT reached its ray cap: kept as visible.
     pub cap_reached: u64,
     /// Invisible by geometry: no direction of the cell reaches the
@@ -443,6 +456,7 @@ impl Decisions {
     fn add(&mut self, o: &Decisions) {
         self.proven_by_hit += o.proven_by_hit;
         self.sprt_invisible += o.sprt_invisible;
+        self.decided_by_ancestors += o.decided_by_ancestors;
         self.cap_reached += o.cap_reached;
         self.geometry_invisible += o.geometry_invisible;
         self.rejection_kept += o.rejection_kept;
@@ -552,6 +566,7 @@ pub fn build(
         params.seed,
         &candidates,
         &ObjectSet::new(scene.objects().len()),
+        Vec::new(),
         Vec::new(),
         &mut stats,
     );

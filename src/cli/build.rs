@@ -133,6 +133,11 @@ pub struct BuildArgs {
     /// ones) [0 = none, to 64].
     #[arg(long, default_value_t = BuildParams::default().edge_rays, value_parser = clap::value_parser!(u32).range(0..=64))]
     edge_rays: u32,
+    /// Test every candidate of a cell from scratch, instead of counting
+    /// the object samples its ancestors traced inside it (their hits as
+    /// proofs, their misses toward the test)
+    #[arg(long)]
+    no_inherit_samples: bool,
     /// After building, render this many random views and report the pixel
     /// error [0 to 1,000,000].
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
@@ -175,6 +180,7 @@ impl BuildArgs {
             rejection_budget: self.rejection_budget,
             retest_rays: self.retest_rays,
             edge_rays: self.edge_rays,
+            inherit_samples: !self.no_inherit_samples,
             view_box: None,
             view_grow: self.grow,
             seed: self.seed,
@@ -221,6 +227,7 @@ struct Written {
 struct DecisionReport {
     proven_by_hit: u64,
     sprt_invisible: u64,
+    decided_by_ancestors: u64,
     cap_reached: u64,
     geometry_invisible: u64,
     rejection_kept: u64,
@@ -420,6 +427,7 @@ fn build_report(
         decisions: DecisionReport {
             proven_by_hit: d.proven_by_hit,
             sprt_invisible: d.sprt_invisible,
+            decided_by_ancestors: d.decided_by_ancestors,
             cap_reached: d.cap_reached,
             geometry_invisible: d.geometry_invisible,
             rejection_kept: d.rejection_kept,
@@ -473,8 +481,13 @@ fn print_build(out: &mut impl Write, r: &BuildReport) -> io::Result<()> {
     let d = &r.decisions;
     writeln!(
         out,
-        "  decisions        {} proven by a hit, {} invisible by SPRT, {} invisible by geometry,",
-        d.proven_by_hit, d.sprt_invisible, d.geometry_invisible
+        "  decisions        {} proven by a hit, {} invisible by SPRT ({} on ancestors' samples alone),",
+        d.proven_by_hit, d.sprt_invisible, d.decided_by_ancestors
+    )?;
+    writeln!(
+        out,
+        "                   {} invisible by geometry,",
+        d.geometry_invisible
     )?;
     writeln!(
         out,

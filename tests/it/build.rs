@@ -353,3 +353,35 @@ fn edge_rays_only_add_what_rays_hit() {
     assert_eq!((s0.edge_rays, s0.decisions.edge_found), (0, 0));
     assert!(s1.edge_rays > 0 && s1.decisions.edge_found > 0, "{s1:?}");
 }
+
+/// Object samples traced by a node are handed down to the child they lie
+/// in: their hits prove objects there and their misses count in the
+/// child's tests. On the city and the office this saves object rays (some
+/// tests are decided by the ancestors' samples alone) and the tree still
+/// sees what renders see (`default_build_sees_what_renders_see` runs with
+/// it on: it is the default).
+#[test]
+fn inherited_samples_save_object_rays() {
+    for name in ["city", "office"] {
+        let s = scene::load(crate::committed(&format!("{name}.obj"))).unwrap();
+        let tracer = Tracer::new(&s);
+        let run = |inherit_samples: bool| {
+            let params = BuildParams {
+                inherit_samples,
+                ..BuildParams::default()
+            };
+            let (tree, stats) = build(&s, &tracer, &params, &|_| {}).unwrap();
+            tree.validate().unwrap();
+            stats
+        };
+        let (without, with) = (run(false), run(true));
+        assert_eq!(without.decisions.decided_by_ancestors, 0);
+        assert!(with.decisions.decided_by_ancestors > 0, "{name}: {with:?}");
+        assert!(
+            (with.object_rays as f64) < 0.95 * without.object_rays as f64,
+            "{name}: {} object rays with, {} without",
+            with.object_rays,
+            without.object_rays
+        );
+    }
+}
