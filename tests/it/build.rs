@@ -4,7 +4,9 @@
 use std::path::Path;
 
 use glam::Vec3;
-use vis5d::builder::{BuildParams, BuildStats, VerifyParams, build, pixel_error, summarize};
+use vis5d::builder::{
+    BuildParams, BuildStats, SplitScore, VerifyParams, build, pixel_error, summarize,
+};
 use vis5d::geom::Aabb;
 use vis5d::geom::cell::{DIMS, THETA};
 use vis5d::scene::procedural::shapes::push_box;
@@ -383,5 +385,37 @@ fn inherited_samples_save_object_rays() {
             with.object_rays,
             without.object_rays
         );
+    }
+}
+
+/// The expected-set split score (`--split-score expected-set`) builds
+/// valid trees that see what renders see, on the office (rooms behind
+/// walls, where it cuts off thin slabs that E refuses) and the city, and
+/// its trees differ from E's.
+#[test]
+fn the_expected_set_score_sees_what_renders_see() {
+    for name in ["office", "city"] {
+        let s = scene::load(crate::committed(&format!("{name}.obj"))).unwrap();
+        let params = BuildParams {
+            split_score: SplitScore::ExpectedSet,
+            split_threshold: SplitScore::ExpectedSet.default_threshold(),
+            ..BuildParams::default()
+        };
+        params.validate().unwrap();
+        let (tracer, tree) = build_default(&s, &params);
+        let v = VerifyParams {
+            views: 40,
+            resolution: 48,
+            ..VerifyParams::default()
+        };
+        let e = pixel_error(&s, &tracer, &tree, &v);
+        assert!(
+            e.fraction() < 0.001,
+            "{name}: pixel error {} ({:?})",
+            e.fraction(),
+            e.missing_objects
+        );
+        let (_, default) = build_default(&s, &BuildParams::default());
+        assert_ne!(tree.leaf_count(), default.leaf_count(), "{name}");
     }
 }
