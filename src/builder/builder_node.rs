@@ -293,7 +293,7 @@ pub(super) fn build_node(
     let (below_cache, above_cache): (Vec<_>, Vec<_>) =
         cache.into_iter().partition(|r| r.p[dim] < value);
     let (below_samples, above_samples) =
-        builder_leaf::hand_down(samples, own_samples, &set, dim, value);
+        builder_leaf::hand_down(&cell, samples, own_samples, &set, dim, value);
     let child_state = NodeState {
         depth: state.depth + 1,
         angular_left: match state.angular_left {

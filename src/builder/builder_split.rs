@@ -1,6 +1,6 @@
 //! Choosing a split (papers/003 sec. 4): candidate values on the q-bit
-//! grid, scored by the share of the expected set they remove (the
-//! default) or by papers/003's effectiveness
+//! grid, scored by papers/003's effectiveness E (the default) or by the
+//! share of the expected set they remove (S)
 //!
 //! ```text
 //! S(A, B) = 1 - (|vis(A)| vol(A) + |vis(B)| vol(B)) / (|vis(C)| vol(C))
