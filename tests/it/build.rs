@@ -21,6 +21,29 @@ fn build_default(s: &Scene, params: &BuildParams) -> (Tracer, VisTree) {
     (tracer, tree)
 }
 
+/// Asserts a pixel error under 0.1% over `views` random views of 48x48
+/// pixels rendered by ray casting.
+fn assert_sees_what_renders_see(
+    name: &str,
+    s: &Scene,
+    tracer: &Tracer,
+    tree: &VisTree,
+    views: u32,
+) {
+    let v = VerifyParams {
+        views,
+        resolution: 48,
+        ..VerifyParams::default()
+    };
+    let e = pixel_error(s, tracer, tree, &v);
+    assert!(
+        e.fraction() < 0.001,
+        "{name}: pixel error {} ({:?})",
+        e.fraction(),
+        e.missing_objects
+    );
+}
+
 /// Pixel error below 0.1% with default parameters on every committed
 /// scene (notes/build.md has the figures with more views), and the tree's
 /// invariants hold.
@@ -64,18 +87,7 @@ fn every_preset_builds_a_tree_that_sees_what_renders_see() {
     for (name, params) in BuildParams::presets() {
         params.validate().unwrap();
         let (tracer, tree) = build_default(&s, &params);
-        let v = VerifyParams {
-            views: 20,
-            resolution: 48,
-            ..VerifyParams::default()
-        };
-        let e = pixel_error(&s, &tracer, &tree, &v);
-        assert!(
-            e.fraction() < 0.001,
-            "{name}: pixel error {} ({:?})",
-            e.fraction(),
-            e.missing_objects
-        );
+        assert_sees_what_renders_see(name, &s, &tracer, &tree, 20);
         assert!(tree.depth() <= params.max_depth, "{name}");
     }
 }
@@ -403,18 +415,7 @@ fn the_expected_set_score_sees_what_renders_see() {
         };
         params.validate().unwrap();
         let (tracer, tree) = build_default(&s, &params);
-        let v = VerifyParams {
-            views: 40,
-            resolution: 48,
-            ..VerifyParams::default()
-        };
-        let e = pixel_error(&s, &tracer, &tree, &v);
-        assert!(
-            e.fraction() < 0.001,
-            "{name}: pixel error {} ({:?})",
-            e.fraction(),
-            e.missing_objects
-        );
+        assert_sees_what_renders_see(name, &s, &tracer, &tree, 40);
         let (_, default) = build_default(&s, &BuildParams::default());
         assert_ne!(tree.leaf_count(), default.leaf_count(), "{name}");
     }
