@@ -90,6 +90,14 @@ impl SplitScore {
         }
     }
 
+    /// Both scores, the default first.
+    pub const ALL: [SplitScore; 2] = [SplitScore::Effectiveness, SplitScore::ExpectedSet];
+
+    /// The score named `name` ([`SplitScore::name`]), if any.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|s| s.name() == name)
+    }
+
     /// The name used on the command line and in the parameters' text.
     pub fn name(self) -> &'static str {
         match self {

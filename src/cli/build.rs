@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use clap::builder::TypedValueParser;
 use serde::Serialize;
 use vis5d::builder::{BuildError, BuildParams, BuildStats, PixelError, SplitScore, VerifyParams};
 use vis5d::codec::{self, Coding};
@@ -87,9 +88,14 @@ pub struct BuildArgs {
     /// How a candidate split is scored: effectiveness (papers/003's
     /// E(A, B), which refuses unbalanced cuts) or expected-set (the share
     /// of a random view ray's expected set that the split removes; it cuts
-    /// off thin slabs behind walls, for 10-60% more rays)
-    #[arg(long, value_enum, default_value_t = ScoreArg::Effectiveness)]
-    split_score: ScoreArg,
+    /// off thin slabs behind walls, for 10-66% more rays)
+    #[arg(
+        long,
+        default_value = SplitScore::Effectiveness.name(),
+        value_parser = clap::builder::PossibleValuesParser::new(SplitScore::ALL.map(SplitScore::name))
+            .map(|name| SplitScore::from_name(&name).expect("a possible value"))
+    )]
+    split_score: SplitScore,
     /// Split only when the split's score exceeds this [0 to below 1;
     /// default 0.3 for effectiveness, 0.1 for expected-set]
     #[arg(long, allow_hyphen_values = true)]
@@ -159,23 +165,11 @@ pub struct BuildArgs {
     max_nodes: u64,
 }
 
-/// `--split-score` (see [`SplitScore`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum ScoreArg {
-    /// The share of the expected set the split removes.
-    ExpectedSet,
-    /// papers/003's effectiveness E(A, B).
-    Effectiveness,
-}
-
 impl BuildArgs {
     /// The parameters, all but the view box, which needs the scene's
     /// frame ([`WorldBox::to_local`]).
     fn params(&self) -> BuildParams {
-        let split_score = match self.split_score {
-            ScoreArg::ExpectedSet => SplitScore::ExpectedSet,
-            ScoreArg::Effectiveness => SplitScore::Effectiveness,
-        };
+        let split_score = self.split_score;
         BuildParams {
             sprt: SprtParams {
                 s_thresh: self.s_thresh,
