@@ -77,6 +77,7 @@
 //! | [`codec`] | papers/003 sec. 6 | the three set codings and the `.v5d` file |
 //! | [`query`] | papers/003 sec. 7 | [`query::Pvs`]: range and view queries |
 //! | [`oracle`] | papers/001 | the conservative extended-projection oracle |
+//! | [`conservative`] | papers/001 sec. 6 | the conservative bake: a spatial k-d tree of the oracle's sets |
 //! | [`lazy_grid`] | papers/002 | the lazy occlusion grid (an online baseline) |
 //!
 //! Runtime side (always built): [`geom`] (boxes, 5D cells), [`bitset`],
@@ -87,7 +88,7 @@
 //! Builder side (feature `builder`): [`scene`] (OBJ/glTF loading,
 //! procedural scenes), [`trace`] (the exact BVH tracer), [`random`] (the
 //! shared random draws), [`sample`], [`sprt`], [`builder`], [`render`] (the
-//! one camera and the ray-cast ID buffer), [`oracle`], [`lazy_grid`],
+//! one camera and the ray-cast ID buffer), [`oracle`], [`conservative`], [`lazy_grid`],
 //! [`report`] (the methods compared against a ray-cast ground truth).
 //!
 //! ## Features
@@ -107,6 +108,8 @@ pub mod bitset;
 #[cfg(feature = "builder")]
 pub mod builder;
 pub mod codec;
+#[cfg(feature = "builder")]
+pub mod conservative;
 pub mod geom;
 pub mod input;
 pub mod invariant;

@@ -557,6 +557,16 @@ impl Pvs {
         &self.params
     }
 
+    /// Whether the tree is conservative (`vis5d build --conservative`:
+    /// every set holds every object some ray of its cell can see, by the
+    /// extended-projection oracle) rather than sampled (`vis5d build`: each
+    /// object tested by rays, an object seen from a small part of a cell
+    /// may be missed). Read from the file's parameters
+    /// ([`crate::codec::METHOD_KEY`]).
+    pub fn is_conservative(&self) -> bool {
+        crate::codec::params_say_conservative(&self.params)
+    }
+
     /// The coding the file used.
     pub fn coding(&self) -> Coding {
         self.coding

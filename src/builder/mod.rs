@@ -438,12 +438,25 @@ pub fn to_file(
     params: &BuildParams,
     coding: Option<Coding>,
 ) -> V5dFile {
+    file_with_params(scene, tree, params.to_text(scene), coding)
+}
+
+/// The `.v5d` file of any `tree` built for `scene` (the sampled builder's,
+/// or the conservative bake's), its parameter text `params` (`key=value`
+/// lines), in `coding` (the smallest when `None`), with the scene's
+/// objects and their bounds.
+pub fn file_with_params(
+    scene: &Scene,
+    tree: VisTree,
+    params: String,
+    coding: Option<Coding>,
+) -> V5dFile {
     let coding = coding.unwrap_or_else(|| smallest_coding(&tree));
     V5dFile {
         coding,
         fingerprint: scene.fingerprint(),
         frame: scene.frame(),
-        params: params.to_text(scene),
+        params,
         objects: scene
             .objects()
             .iter()

@@ -10,6 +10,8 @@ use clap::builder::TypedValueParser;
 use serde::Serialize;
 use vis5d::builder::{BuildError, BuildParams, BuildStats, PixelError, SplitScore, VerifyParams};
 use vis5d::codec::{self, Coding};
+use vis5d::conservative::{BakeError, BakeParams};
+use vis5d::oracle::{Oracle, OracleParams, Rasteriser};
 use vis5d::scene::Scene;
 use vis5d::sprt::SprtParams;
 use vis5d::trace::Tracer;
@@ -20,6 +22,7 @@ use crate::common::{
     parse_box, parse_pair, print_shape, progress_bar,
 };
 use crate::memory;
+use crate::oracle::GpuWarning;
 
 #[derive(Args, Debug)]
 pub struct BuildArgs {
@@ -50,46 +53,47 @@ pub struct BuildArgs {
     grow: f32,
     /// Seed of every random stream: the same seed gives the same tree,
     /// whatever the thread count.
-    #[arg(long, default_value_t = BuildParams::default().seed)]
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().seed)]
     seed: u64,
     /// Threads [1 to 1024; default: all cores].
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
     threads: Option<u16>,
     /// SPRT: the visible fraction separating visible from invisible
     /// [above 0, below 1].
-    #[arg(long, default_value_t = BuildParams::default().sprt.s_thresh, allow_hyphen_values = true)]
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().sprt.s_thresh, allow_hyphen_values = true)]
     s_thresh: f64,
     /// SPRT: odds above which an object is visible (the paper's A) [finite,
     /// above B].
-    #[arg(long, default_value_t = BuildParams::default().sprt.accept, allow_hyphen_values = true)]
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().sprt.accept, allow_hyphen_values = true)]
     accept: f64,
     /// SPRT: odds below which an object is invisible (the paper's B)
     /// [above 0, below A].
-    #[arg(long, default_value_t = BuildParams::default().sprt.reject, allow_hyphen_values = true)]
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().sprt.reject, allow_hyphen_values = true)]
     reject: f64,
     /// SPRT: the prior Beta(a, b) on the visible fraction, as a,b [both
     /// finite and above 0].
-    #[arg(long, value_name = "A,B", value_parser = parse_pair,
+    #[arg(conflicts_with = "conservative", long, value_name = "A,B", value_parser = parse_pair,
           default_value = "1,50", allow_hyphen_values = true)]
     prior: (f64, f64),
     /// SPRT: rays after which an undecided object is kept as visible [1 to
     /// 1,000,000].
-    #[arg(long, default_value_t = BuildParams::default().sprt.max_rays, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().sprt.max_rays, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     max_rays: u32,
     /// Internal nodes declare an object invisible only after this many
     /// times the misses the SPRT needs (their verdict holds for every cell
     /// below) [1 to 1,000].
-    #[arg(long, default_value_t = BuildParams::default().internal_miss_factor, value_parser = clap::value_parser!(u32).range(1..=1_000))]
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().internal_miss_factor, value_parser = clap::value_parser!(u32).range(1..=1_000))]
     internal_miss_factor: u32,
     /// Uniform cell rays cached per cell to score splits [1 to
     /// 1,000,000].
-    #[arg(long, default_value_t = BuildParams::default().cache_rays, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().cache_rays, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     cache_rays: u32,
     /// How a candidate split is scored: effectiveness (papers/003's
     /// E(A, B), which refuses unbalanced cuts) or expected-set (the share
     /// of a random view ray's expected set that the split removes; it cuts
     /// off thin slabs behind walls, for 10-66% more rays)
     #[arg(
+        conflicts_with = "conservative",
         long,
         default_value = SplitScore::Effectiveness.name(),
         value_parser = clap::builder::PossibleValuesParser::new(SplitScore::ALL.map(SplitScore::name))
@@ -98,57 +102,58 @@ pub struct BuildArgs {
     split_score: SplitScore,
     /// Split only when the split's score exceeds this [0 to below 1;
     /// default 0.3 for effectiveness, 0.1 for expected-set]
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(conflicts_with = "conservative", long, allow_hyphen_values = true)]
     split_threshold: Option<f64>,
-    /// The deepest a leaf may be [0 to 64, less the angular cuts].
-    #[arg(long, default_value_t = BuildParams::default().max_depth, value_parser = clap::value_parser!(u32).range(0..=64))]
-    max_depth: u32,
+    /// The deepest a leaf may be [0 to 64, less the angular cuts; default:
+    /// 12, and 10 with --conservative].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=64))]
+    max_depth: Option<u32>,
     /// The smallest cell in x, y, z, as a fraction of the root's extent
     /// [1e-6 to below 0.5].
     #[arg(long, default_value_t = BuildParams::default().min_cell_fraction, allow_hyphen_values = true)]
     min_cell: f32,
     /// The smallest cell in theta and phi, as a fraction of 2 pi and pi
     /// [1e-6 to below 0.5].
-    #[arg(long, default_value_t = BuildParams::default().min_angle_fraction, allow_hyphen_values = true)]
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().min_angle_fraction, allow_hyphen_values = true)]
     min_angle: f32,
     /// Split a cell only if its set holds at least this many triangles
     /// (the paper: 500) [any count].
-    #[arg(long, default_value_t = BuildParams::default().min_visible_triangles)]
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().min_visible_triangles)]
     min_visible_triangles: u64,
     /// Split x, y, z only, then cut each final cell into
     /// --angular-leaves angular intervals.
-    #[arg(long)]
+    #[arg(conflicts_with = "conservative", long)]
     spatial_only: bool,
     /// With --spatial-only: angular intervals per final cell (a power of
     /// two; the paper used 8) [1 to 256].
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=256))]
+    #[arg(conflicts_with = "conservative", long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=256))]
     angular_leaves: u32,
     /// Candidate split values per angular dimension [1 to 64].
-    #[arg(long, default_value_t = BuildParams::default().angular_candidates, value_parser = clap::value_parser!(u32).range(1..=64))]
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().angular_candidates, value_parser = clap::value_parser!(u32).range(1..=64))]
     angular_candidates: u32,
     /// Split values lie on a 2^q grid of the node's range [1 to 16].
     #[arg(long, default_value_t = BuildParams::default().grid_bits, value_parser = clap::value_parser!(u32).range(1..=16))]
     grid_bits: u32,
     /// Rejected samples per object and cell after which it is kept as
     /// visible [1 to 10,000,000].
-    #[arg(long, default_value_t = BuildParams::default().rejection_budget, value_parser = clap::value_parser!(u32).range(1..=10_000_000))]
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().rejection_budget, value_parser = clap::value_parser!(u32).range(1..=10_000_000))]
     rejection_budget: u32,
     /// Samples with which each leaf retests every object an ancestor
     /// called invisible (an object seen from a small part of a big cell is
     /// found in the leaf where it is well visible) [0 = no retest, to
     /// 100,000].
-    #[arg(long, default_value_t = BuildParams::default().retest_rays, value_parser = clap::value_parser!(u32).range(0..=100_000))]
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().retest_rays, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     retest_rays: u32,
     /// Rays each leaf casts per cell ray that hit something, from the same
     /// origin to just past an edge of the triangle it hit (guided
     /// visibility sampling: finds objects that peek out from behind nearer
     /// ones) [0 = none, to 64].
-    #[arg(long, default_value_t = BuildParams::default().edge_rays, value_parser = clap::value_parser!(u32).range(0..=64))]
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().edge_rays, value_parser = clap::value_parser!(u32).range(0..=64))]
     edge_rays: u32,
     /// Test every candidate of a cell from scratch, instead of counting
     /// the object samples its ancestors traced inside it (their hits as
     /// proofs, their misses toward the test)
-    #[arg(long)]
+    #[arg(conflicts_with = "conservative", long)]
     no_inherit_samples: bool,
     /// After building, render this many random views and report the pixel
     /// error [0 to 1,000,000].
@@ -158,6 +163,37 @@ pub struct BuildArgs {
     /// a view needs is checked first].
     #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=8192))]
     verify_resolution: u32,
+    /// Bake a conservative tree instead of sampling one: a spatial k-d
+    /// tree of view cells, each leaf holding the objects that the
+    /// extended-projection oracle (papers/001, `vis5d oracle`) cannot prove
+    /// hidden from its box, cells cut in two where their set holds more
+    /// than --triangle-budget triangles (papers/001 sec. 6). It never drops
+    /// a visible object; its sets are larger than the sampled tree's. Same
+    /// file format and queries; `vis5d stat` shows the method. The
+    /// sampler's flags do not apply.
+    #[arg(long)]
+    conservative: bool,
+    /// With --conservative: cut a cell whose set holds more triangles than
+    /// this [default: a hundredth of the scene's triangles, at least 500].
+    #[arg(long, requires = "conservative")]
+    triangle_budget: Option<u64>,
+    /// With --conservative: try the middle of each side of a cell and keep
+    /// the cut whose halves hold the fewest triangles, instead of cutting
+    /// the longest side (runs the oracle on the halves of every cut tried:
+    /// about 2.3x the time).
+    #[arg(long, requires = "conservative")]
+    try_cuts: bool,
+    /// With --conservative: stop cutting where this many levels in a row
+    /// proved nothing more hidden (saves time on open scenes, where big
+    /// cells prove nothing; in buildings deeper cells often do) [0 = cut
+    /// to the depth limit and the budget, to 64].
+    #[arg(long, requires = "conservative", default_value_t = BakeParams::default().stall_levels,
+          value_parser = clap::value_parser!(u32).range(0..=64))]
+    stall_levels: u32,
+    /// With --conservative: rasterise the oracle's Depth Maps on the CPU
+    /// even where a GPU exists.
+    #[arg(long, requires = "conservative")]
+    cpu: bool,
     /// The most nodes the tree may have [1 to 4,294,967,295; lowered to
     /// what the memory budget holds]: a build that would make more fails,
     /// rather than running for hours or out of memory.
@@ -185,7 +221,7 @@ impl BuildArgs {
             split_threshold: self
                 .split_threshold
                 .unwrap_or(split_score.default_threshold()),
-            max_depth: self.max_depth,
+            max_depth: self.max_depth.unwrap_or(BuildParams::default().max_depth),
             min_cell_fraction: self.min_cell,
             min_angle_fraction: self.min_angle,
             min_visible_triangles: self.min_visible_triangles,
@@ -281,6 +317,9 @@ pub fn run(args: &BuildArgs) -> Result<()> {
             .build_global()
             .context("cannot set up the thread pool")?;
     }
+    if args.conservative {
+        return run_conservative(args);
+    }
     let mut params = args.params();
     params.validate().map_err(|e| match &e {
         BuildError::Parameter { name, .. } => {
@@ -308,7 +347,7 @@ pub fn run(args: &BuildArgs) -> Result<()> {
     // one verification view's rays and hits.
     let threads = rayon::current_num_threads() as u64;
     memory::check(
-        u64::from(args.cache_rays) * 32 * (u64::from(args.max_depth) + 1) * threads,
+        u64::from(args.cache_rays) * 32 * (u64::from(params.max_depth) + 1) * threads,
         "--cache-rays",
         "cache fewer rays or build shallower trees",
     )?;
@@ -320,26 +359,13 @@ pub fn run(args: &BuildArgs) -> Result<()> {
         )?;
     }
     let (scene, load_seconds) = load_scene(&args.file)?;
-    if let Some(b) = args.view_box {
-        let local = b.to_local(&scene.frame());
-        if !(local.min.is_finite() && local.max.is_finite()) {
-            bail!(
-                "--view-box: the box reaches too far from the scene (its coordinates relative \
-                 to the scene must fit in f32, about 3e38)"
-            );
-        }
+    if let Some(local) = local_view_box(args, &scene)? {
         params.view_box = Some(local);
         params
             .validate()
             .map_err(|e| anyhow::anyhow!("--view-box: {e} (in the scene's local frame)"))?;
     }
-    // The tree's nodes (a set of bits per object, and bookkeeping) within
-    // the memory budget: the node budget is lowered to what it holds.
-    let node_bytes = 2 * (scene.objects().len().div_ceil(64) as u64 * 8 + 64);
-    let by_memory = memory::budget().map_or(u64::MAX, |b| b / node_bytes);
-    if by_memory < params.max_nodes {
-        params.max_nodes = by_memory.max(1);
-    }
+    params.max_nodes = node_budget(&scene, params.max_nodes);
     let start = Instant::now();
     let tracer = Tracer::new(&scene);
     let bvh_seconds = start.elapsed().as_secs_f64();
@@ -376,20 +402,7 @@ pub fn run(args: &BuildArgs) -> Result<()> {
         None
     } else {
         let file = vis5d::builder::to_file(&scene, tree.clone(), &params, args.coding);
-        let bytes = codec::write_file(&file);
-        // Encode -> decode must be the identity: check before writing.
-        let back = codec::read_file(&bytes, codec::ReadLimits::default())
-            .map_err(|e| anyhow::anyhow!("internal error: the coded tree does not decode: {e}"))?;
-        if back.tree != tree {
-            bail!("internal error: the coded tree decodes to another tree");
-        }
-        vis5d::atomic_write::write_atomic(&output, &bytes)
-            .with_context(|| format!("{}: cannot write the tree", output.display()))?;
-        Some(Written {
-            path: output.display().to_string(),
-            bytes: bytes.len(),
-            coding: file.coding.name().to_owned(),
-        })
+        Some(write_tree(&file, &output)?)
     };
     let mut report = build_report(
         args,
@@ -410,6 +423,263 @@ pub fn run(args: &BuildArgs) -> Result<()> {
         print_build(&mut out, &report)?;
     }
     Ok(())
+}
+
+/// `--view-box` in the scene's local frame, if given.
+fn local_view_box(args: &BuildArgs, scene: &Scene) -> Result<Option<vis5d::geom::Aabb>> {
+    let Some(b) = args.view_box else {
+        return Ok(None);
+    };
+    let local = b.to_local(&scene.frame());
+    if !(local.min.is_finite() && local.max.is_finite()) {
+        bail!(
+            "--view-box: the box reaches too far from the scene (its coordinates relative \
+             to the scene must fit in f32, about 3e38)"
+        );
+    }
+    Ok(Some(local))
+}
+
+/// `max_nodes`, lowered to what the memory budget holds of the tree's
+/// nodes (a set of bits per object, and bookkeeping).
+fn node_budget(scene: &Scene, max_nodes: u64) -> u64 {
+    let node_bytes = 2 * (scene.objects().len().div_ceil(64) as u64 * 8 + 64);
+    let by_memory = memory::budget().map_or(u64::MAX, |b| b / node_bytes);
+    max_nodes.min(by_memory.max(1))
+}
+
+/// Writes `file` to `output` atomically, after checking that it decodes
+/// to the same tree.
+fn write_tree(file: &codec::V5dFile, output: &std::path::Path) -> Result<Written> {
+    let bytes = codec::write_file(file);
+    // Encode -> decode must be the identity: check before writing.
+    let back = codec::read_file(&bytes, codec::ReadLimits::default())
+        .map_err(|e| anyhow::anyhow!("internal error: the coded tree does not decode: {e}"))?;
+    if back.tree != file.tree {
+        bail!("internal error: the coded tree decodes to another tree");
+    }
+    vis5d::atomic_write::write_atomic(output, &bytes)
+        .with_context(|| format!("{}: cannot write the tree", output.display()))?;
+    Ok(Written {
+        path: output.display().to_string(),
+        bytes: bytes.len(),
+        coding: file.coding.name().to_owned(),
+    })
+}
+
+/// What `build --conservative` reports.
+#[derive(Serialize)]
+struct BakeReport {
+    method: &'static str,
+    file: String,
+    objects: usize,
+    triangles: usize,
+    view_box: [World; 2],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    frame_origin: Option<[f64; 3]>,
+    threads: usize,
+    rasteriser: String,
+    triangle_budget: u64,
+    #[serde(flatten)]
+    tree: ShapeReport,
+    oracle_cells: u64,
+    cells_split: u64,
+    leaves_over_budget: u64,
+    oracle_ms_per_cell: f64,
+    seconds: BakeSeconds,
+    pixel_error: Option<PixelErrorReport>,
+    coding_sizes: Vec<CodingSize>,
+    written: Option<Written>,
+}
+
+#[derive(Serialize)]
+struct BakeSeconds {
+    load: f64,
+    occluders: f64,
+    bake: f64,
+    verify: f64,
+}
+
+/// Runs `vis5d build --conservative`.
+fn run_conservative(args: &BuildArgs) -> Result<()> {
+    let mut params = BakeParams {
+        triangle_budget: args.triangle_budget,
+        max_depth: args.max_depth.unwrap_or(BakeParams::default().max_depth),
+        min_cell_fraction: args.min_cell,
+        grid_bits: args.grid_bits,
+        view_box: None,
+        view_grow: args.grow,
+        max_nodes: args.max_nodes,
+        try_cuts: args.try_cuts,
+        stall_levels: args.stall_levels,
+    };
+    let bake_flag = |e: BakeError| match &e {
+        BakeError::Parameter { name, .. } => {
+            let flag = match *name {
+                "min_cell_fraction" => "--min-cell".to_owned(),
+                "view_grow" => "--grow".to_owned(),
+                "view_box" => "--view-box".to_owned(),
+                other => flag(other),
+            };
+            anyhow::anyhow!("{flag}: {e}")
+        }
+        _ => e.into(),
+    };
+    params.validate().map_err(bake_flag)?;
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| args.file.with_extension("v5d"));
+    if !args.dry_run {
+        check_output(&output, "tree", &[&args.file])?;
+    }
+    if args.verify_views > 0 {
+        memory::check(
+            u64::from(args.verify_resolution).pow(2) * 48,
+            "--verify-resolution",
+            "render smaller verification views",
+        )?;
+    }
+    let (scene, load_seconds) = load_scene(&args.file)?;
+    if let Some(local) = local_view_box(args, &scene)? {
+        params.view_box = Some(local);
+        params
+            .validate()
+            .map_err(|e| anyhow::anyhow!("--view-box: {e} (in the scene's local frame)"))?;
+    }
+    params.max_nodes = node_budget(&scene, params.max_nodes);
+    let rasteriser = if args.cpu {
+        Rasteriser::cpu()
+    } else {
+        let r = Rasteriser::best();
+        if let Some(why) = r.cpu_reason() {
+            say!("note: {why}; using the CPU rasteriser");
+        }
+        r
+    };
+    let start = Instant::now();
+    let oracle = Oracle::new(&scene, OracleParams::default(), rasteriser)?;
+    let occluder_seconds = start.elapsed().as_secs_f64();
+    let bar = progress_bar("baking", 1000);
+    let gpu_warning = GpuWarning::default();
+    let (tree, stats) = vis5d::conservative::bake(&oracle, &params, &|f| {
+        bar.set_position((f * 1000.0) as u64);
+        gpu_warning.poll(oracle.rasteriser());
+    })
+    .map_err(|e| match e {
+        BakeError::TooManyNodes { .. } if params.max_nodes < args.max_nodes => anyhow::anyhow!(
+            "{e} (the memory budget, {}, holds {} nodes of this scene)",
+            memory::human(memory::budget().unwrap_or(0)),
+            params.max_nodes
+        ),
+        e => bake_flag(e),
+    })?;
+    bar.finish_and_clear();
+    gpu_warning.finish(oracle.rasteriser());
+    tree.validate()
+        .map_err(|e| anyhow::anyhow!("internal error: the baked tree is inconsistent: {e}"))?;
+    let summary = vis5d::builder::summarize(&tree, &scene);
+    let start = Instant::now();
+    let verify = (args.verify_views > 0).then(|| {
+        let tracer = Tracer::new(&scene);
+        let v = VerifyParams {
+            views: args.verify_views,
+            resolution: args.verify_resolution,
+            ..VerifyParams::default()
+        };
+        vis5d::builder::pixel_error(&scene, &tracer, &tree, &v)
+    });
+    let verify_seconds = start.elapsed().as_secs_f64();
+    let coding_sizes = coding_sizes(&tree);
+    let text = params.to_text(&oracle);
+    let written = if args.dry_run {
+        None
+    } else {
+        let file = vis5d::builder::file_with_params(&scene, tree, text, args.coding);
+        Some(write_tree(&file, &output)?)
+    };
+    let b = params.root_box(&scene);
+    let frame = scene.frame();
+    let report = BakeReport {
+        method: vis5d::codec::METHOD_CONSERVATIVE,
+        file: args.file.display().to_string(),
+        objects: scene.objects().len(),
+        triangles: scene.triangles().len(),
+        view_box: [World(frame, b.min), World(frame, b.max)],
+        frame_origin: (!frame.is_identity()).then(|| frame.origin.to_array()),
+        threads: rayon::current_num_threads(),
+        rasteriser: oracle.rasteriser().name(),
+        triangle_budget: params.budget(&scene),
+        tree: summary.into(),
+        oracle_cells: stats.cells,
+        cells_split: stats.split,
+        leaves_over_budget: stats.over_budget_leaves,
+        oracle_ms_per_cell: stats.oracle_time.as_secs_f64() * 1e3 / stats.cells.max(1) as f64,
+        seconds: BakeSeconds {
+            load: load_seconds,
+            occluders: occluder_seconds,
+            bake: stats.seconds,
+            verify: verify_seconds,
+        },
+        pixel_error: verify.as_ref().map(|v| pixel_error_report(v, args, &scene)),
+        coding_sizes,
+        written,
+    };
+    let mut out = io::stdout().lock();
+    if args.json {
+        serde_json::to_writer_pretty(&mut out, &report)?;
+        writeln!(out)?;
+    } else {
+        print_bake(&mut out, &report)?;
+    }
+    Ok(())
+}
+
+fn print_bake(out: &mut impl Write, r: &BakeReport) -> io::Result<()> {
+    writeln!(
+        out,
+        "{}: {} objects, {} triangles (conservative bake)",
+        r.file, r.objects, r.triangles
+    )?;
+    print_shape(out, r.view_box, &r.tree)?;
+    writeln!(
+        out,
+        "  oracle           {} cells ({:.1} ms each, {}), {} cut over the budget of {} triangles, {} leaves still over it",
+        r.oracle_cells,
+        r.oracle_ms_per_cell,
+        r.rasteriser,
+        r.cells_split,
+        r.triangle_budget,
+        r.leaves_over_budget
+    )?;
+    let s = &r.seconds;
+    writeln!(
+        out,
+        "  seconds          load {:.3}, occluders {:.3}, bake {:.3} ({} threads), verify {:.3}",
+        s.load, s.occluders, s.bake, r.threads, s.verify
+    )?;
+    print_tail(
+        out,
+        r.pixel_error.as_ref(),
+        &r.coding_sizes,
+        r.written.as_ref(),
+    )
+}
+
+fn pixel_error_report(v: &PixelError, args: &BuildArgs, scene: &Scene) -> PixelErrorReport {
+    PixelErrorReport {
+        views: v.views,
+        resolution: args.verify_resolution,
+        hit_pixels: v.hit_pixels,
+        missing_pixels: v.missing_pixels,
+        fraction: v.fraction(),
+        worst_view: v.worst_view,
+        missing_objects: v
+            .missing_objects
+            .iter()
+            .map(|&(o, n)| (scene.objects()[o as usize].name.clone(), n))
+            .collect(),
+    }
 }
 
 fn build_report(
@@ -459,19 +729,7 @@ fn build_report(
             tracing_share: stats.trace_seconds / (stats.seconds * threads as f64).max(1e-9),
             verify: verify_seconds,
         },
-        pixel_error: verify.map(|v| PixelErrorReport {
-            views: v.views,
-            resolution: args.verify_resolution,
-            hit_pixels: v.hit_pixels,
-            missing_pixels: v.missing_pixels,
-            fraction: v.fraction(),
-            worst_view: v.worst_view,
-            missing_objects: v
-                .missing_objects
-                .iter()
-                .map(|&(o, n)| (scene.objects()[o as usize].name.clone(), n))
-                .collect(),
-        }),
+        pixel_error: verify.map(|v| pixel_error_report(v, args, scene)),
         coding_sizes: Vec::new(),
         written: None,
     }
@@ -526,7 +784,22 @@ fn print_build(out: &mut impl Write, r: &BuildReport) -> io::Result<()> {
         r.threads,
         s.verify
     )?;
-    if let Some(p) = &r.pixel_error {
+    print_tail(
+        out,
+        r.pixel_error.as_ref(),
+        &r.coding_sizes,
+        r.written.as_ref(),
+    )
+}
+
+/// The pixel error, the coded sizes and what was written.
+fn print_tail(
+    out: &mut impl Write,
+    pixel_error: Option<&PixelErrorReport>,
+    coding_sizes: &[CodingSize],
+    written: Option<&Written>,
+) -> io::Result<()> {
+    if let Some(p) = pixel_error {
         writeln!(
             out,
             "  pixel error      {:.4}% of {} hit pixels in {} views of {}x{} (worst view {:.3}%)",
@@ -541,13 +814,12 @@ fn print_build(out: &mut impl Write, r: &BuildReport) -> io::Result<()> {
             writeln!(out, "                   {n} pixels of {name:?} missing")?;
         }
     }
-    let sizes: Vec<String> = r
-        .coding_sizes
+    let sizes: Vec<String> = coding_sizes
         .iter()
         .map(|c| format!("{} {} B", c.coding, c.bytes))
         .collect();
     writeln!(out, "  coded tree       {}", sizes.join(", "))?;
-    match &r.written {
+    match written {
         Some(w) => writeln!(
             out,
             "  wrote            {} ({} bytes, {} coding)",

@@ -35,6 +35,10 @@ pub struct ReportArgs {
     /// default parameters (and its build time and rays are reported).
     #[arg(long, value_name = "FILE.v5d")]
     pvs: Option<PathBuf>,
+    /// A conservative tree of the scene (`vis5d build --conservative`), to
+    /// report beside the sampled one as "conservative tree".
+    #[arg(long, value_name = "FILE.v5d")]
+    conservative: Option<PathBuf>,
     /// The views: a JSON list as for `vis5d query --views` (a camera
     /// path); without it, `--random` views.
     #[arg(long, value_name = "VIEWS.json")]
@@ -97,6 +101,23 @@ impl ReportArgs {
     }
 }
 
+/// The `.v5d` at `path`, refused unless it was built for `scene`.
+fn read_tree_for(
+    path: &std::path::Path,
+    scene: &vis5d::scene::Scene,
+    args: &ReportArgs,
+) -> Result<codec::V5dFile> {
+    let (_, file) = read_v5d(path)?;
+    if file.fingerprint != scene.fingerprint() {
+        bail!(
+            "{} was built for another scene than {} (geometry fingerprint differs); rebuild it",
+            path.display(),
+            args.file.display()
+        );
+    }
+    Ok(file)
+}
+
 /// Runs `vis5d report`.
 pub fn run(args: &ReportArgs) -> Result<()> {
     let params = args.params()?;
@@ -111,6 +132,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         }
         let mut inputs = vec![args.file.as_path()];
         inputs.extend(args.pvs.as_deref());
+        inputs.extend(args.conservative.as_deref());
         inputs.extend(args.views.as_deref());
         for name in report_page::OUTPUTS {
             check_output(&args.output.join(name), "report", &inputs)?;
@@ -123,14 +145,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     // The tree: given or built.
     let (file, tree) = match &args.pvs {
         Some(path) => {
-            let (_, file) = read_v5d(path)?;
-            if file.fingerprint != scene.fingerprint() {
-                bail!(
-                    "{} was built for another scene than {} (geometry fingerprint differs); rebuild it",
-                    path.display(),
-                    args.file.display()
-                );
-            }
+            let file = read_tree_for(path, &scene, args)?;
             let source = TreeSource {
                 source: path.display().to_string(),
                 build_seconds: None,
@@ -155,6 +170,19 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         }
     };
     let pvs = Pvs::from_bytes(&codec::write_file(&file)).context("the tree")?;
+    let conservative = match &args.conservative {
+        Some(path) => {
+            let c = read_tree_for(path, &scene, args)?;
+            if !codec::params_say_conservative(&c.params) {
+                bail!(
+                    "{}: not a conservative tree (build one with vis5d build --conservative)",
+                    path.display()
+                );
+            }
+            Some(Pvs::from_bytes(&codec::write_file(&c)).context("the conservative tree")?)
+        }
+        None => None,
+    };
     let views: Vec<View> = match path_views {
         // The camera path is in world coordinates; the report works in the
         // scene's local frame.
@@ -197,7 +225,10 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     let experiment = report::run(
         &scene,
         &tracer,
-        &pvs,
+        report::Trees {
+            tree: &pvs,
+            conservative: conservative.as_ref(),
+        },
         oracle.as_ref(),
         &views,
         &params,
@@ -235,7 +266,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     for (name, s) in &summaries {
         writeln!(
             out,
-            "  {:<10} {:>8.1} objects per view, geometry ratio {}, pixel error {} (worst view {}), {} distinct objects missed",
+            "  {:<17} {:>8.1} objects per view, geometry ratio {}, pixel error {} (worst view {}), {} distinct objects missed",
             name,
             s.mean_objects,
             s.geometry_ratio.map_or("n/a".into(), |g| format!("{g:.2}")),

@@ -33,6 +33,8 @@ struct StatReport {
     grid_bits: u32,
     objects: usize,
     fingerprint: String,
+    /// "sampled" or "conservative".
+    method: &'static str,
     /// In the tree's local coordinates: world = local + `frame_origin`.
     root_cell: [[f32; 5]; 2],
     frame_origin: [f64; 3],
@@ -91,6 +93,11 @@ pub fn run(args: &StatArgs) -> Result<()> {
         grid_bits: tree.grid_bits(),
         objects: file.objects.len(),
         fingerprint: format!("{:016x}", file.fingerprint),
+        method: if vis5d::codec::params_say_conservative(&file.params) {
+            "conservative"
+        } else {
+            "sampled"
+        },
         root_cell: [root.lo, root.hi],
         frame_origin: file.frame.origin.to_array(),
         params: file
@@ -119,6 +126,15 @@ pub fn run(args: &StatArgs) -> Result<()> {
         out,
         "  coding           {} (q = {} bits per split value)",
         r.coding, r.grid_bits
+    )?;
+    writeln!(
+        out,
+        "  method           {}",
+        if r.method == "conservative" {
+            "conservative (the oracle's sets: no visible object is ever missing)"
+        } else {
+            "sampled (objects tested by rays)"
+        }
     )?;
     writeln!(out, "  objects          {}", r.objects)?;
     writeln!(out, "  scene            fingerprint {}", r.fingerprint)?;

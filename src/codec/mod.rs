@@ -16,6 +16,24 @@ pub use codec_file::{
 };
 pub use codec_tree::{CodeSize, Coding, DecodeLimits, UnknownCoding, code_size, decode, encode};
 
+/// The parameter key that names how a file's tree was made; a file
+/// without it was sampled (`vis5d build`).
+pub const METHOD_KEY: &str = "method";
+
+/// [`METHOD_KEY`]'s value for a conservative tree (`vis5d build
+/// --conservative`): every set holds every object some ray of its cell can
+/// see.
+pub const METHOD_CONSERVATIVE: &str = "conservative";
+
+/// Whether the parameter text of a file (`key=value` lines) says its tree
+/// is conservative.
+pub fn params_say_conservative(params: &str) -> bool {
+    params.lines().any(|line| {
+        line.split_once('=')
+            .is_some_and(|(k, v)| k.trim() == METHOD_KEY && v.trim() == METHOD_CONSERVATIVE)
+    })
+}
+
 /// Why a `.v5d` file cannot be read. Messages say what is wrong; the
 /// caller adds the file's name.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]

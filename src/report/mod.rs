@@ -27,4 +27,6 @@ mod report_metrics;
 mod report_run;
 
 pub use report_metrics::{MethodSummary, ViewMetrics, ViewTruth, frustum_set, truth};
-pub use report_run::{Experiment, GridCost, Method, MethodRun, ReportError, ReportParams, run};
+pub use report_run::{
+    Experiment, GridCost, Method, MethodRun, ReportError, ReportParams, Trees, run,
+};

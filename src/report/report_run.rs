@@ -21,6 +21,9 @@ pub enum Method {
     Frustum,
     /// The vis5d tree (a `.v5d`) queried per view, then frustum culling.
     Tree,
+    /// A conservative vis5d tree (`vis5d build --conservative`) queried
+    /// the same way, beside the sampled one.
+    ConservativeTree,
     /// The lazy occlusion grid of papers/002 (online, from the eye).
     LazyGrid,
     /// The extended-projection oracle of a cube around the eye, within the
@@ -30,9 +33,10 @@ pub enum Method {
 
 impl Method {
     /// Every method, in the report's order.
-    pub const ALL: [Method; 4] = [
+    pub const ALL: [Method; 5] = [
         Method::Frustum,
         Method::Tree,
+        Method::ConservativeTree,
         Method::LazyGrid,
         Method::Oracle,
     ];
@@ -42,6 +46,7 @@ impl Method {
         match self {
             Method::Frustum => "frustum",
             Method::Tree => "vis5d",
+            Method::ConservativeTree => "conservative tree",
             Method::LazyGrid => "lazy grid",
             Method::Oracle => "oracle",
         }
@@ -54,6 +59,10 @@ impl Method {
             Method::Tree => {
                 "the vis5d tree (.v5d) queried per view (Pvs::query_view: the leaf sets of the \
                  view's directions, culled to its frustum with the object bounds the file stores)"
+            }
+            Method::ConservativeTree => {
+                "a conservative vis5d tree (vis5d build --conservative: the extended-projection \
+                 oracle's sets over a spatial tree of view cells) queried per view the same way"
             }
             Method::LazyGrid => {
                 "the lazy occlusion grid of papers/002: an occlusion buffer with a grid of cells \
@@ -249,15 +258,25 @@ impl Experiment {
     }
 }
 
+/// The trees a report compares: the one of the "vis5d" row, and a
+/// conservative one (`vis5d build --conservative`) beside it.
+#[derive(Clone, Copy)]
+pub struct Trees<'a> {
+    /// The tree of the "vis5d" row.
+    pub tree: &'a Pvs,
+    /// The tree of the "conservative tree" row, when there is one.
+    pub conservative: Option<&'a Pvs>,
+}
+
 /// Runs the experiment on `views` of `scene` (traced by `tracer`): for
 /// each view, the ground truth ([`truth`]), then every method: frustum
-/// culling, the tree `pvs` (built for `scene`), the lazy grid (lazy, then
-/// busy for its costs), and the `oracle` when given. `progress` gets the
+/// culling, the trees (built for `scene`), the lazy grid (lazy, then busy for its costs), and the
+/// `oracle` when given. `progress` gets the
 /// number of views done.
 pub fn run(
     scene: &Scene,
     tracer: &Tracer,
-    pvs: &Pvs,
+    trees: Trees,
     oracle: Option<&Oracle>,
     views: &[View],
     params: &ReportParams,
@@ -267,11 +286,17 @@ pub fn run(
     if views.is_empty() {
         return Err(ReportError::NoViews);
     }
-    pvs.check_fingerprint(scene.fingerprint())
-        .map_err(|e| ReportError::WrongScene {
-            file: e.file,
-            scene: e.scene,
-        })?;
+    let Trees {
+        tree: pvs,
+        conservative,
+    } = trees;
+    for tree in std::iter::once(pvs).chain(conservative) {
+        tree.check_fingerprint(scene.fingerprint())
+            .map_err(|e| ReportError::WrongScene {
+                file: e.file,
+                scene: e.scene,
+            })?;
+    }
     let cameras: Vec<Camera> = views
         .iter()
         .enumerate()
@@ -285,6 +310,7 @@ pub fn run(
     let mut runs: Vec<MethodRun> = Method::ALL
         .iter()
         .filter(|&&m| m != Method::Oracle || oracle.is_some())
+        .filter(|&&m| m != Method::ConservativeTree || conservative.is_some())
         .map(|&m| MethodRun::new(m))
         .collect();
     let grid = LazyGrid::new(scene);
@@ -313,6 +339,12 @@ pub fn run(
         pvs.query_view(view, &mut set);
         let s = start.elapsed().as_secs_f64();
         run_of(&mut runs, Method::Tree).record(scene, &t, &set, s);
+        if let Some(c) = conservative {
+            let start = Instant::now();
+            c.query_view(view, &mut set);
+            let s = start.elapsed().as_secs_f64();
+            run_of(&mut runs, Method::ConservativeTree).record(scene, &t, &set, s);
+        }
 
         let mut grid_params = GridParams {
             cell_pixels: params.grid_cell,

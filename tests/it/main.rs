@@ -7,6 +7,7 @@
 mod bad_input;
 mod build;
 mod cli;
+mod conservative;
 mod gltf_load;
 mod obj_load;
 mod oracle;

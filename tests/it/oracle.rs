@@ -123,7 +123,7 @@ fn never_wrong_on_machine() {
 
 /// The GPU rasteriser, or `None` (skip) without an adapter, unless
 /// `VIS5D_REQUIRE_GPU` is set (CI sets it: there the GPU path must run).
-fn gpu() -> Option<vis5d::oracle::GpuRasteriser> {
+pub fn gpu() -> Option<vis5d::oracle::GpuRasteriser> {
     match vis5d::oracle::GpuRasteriser::new() {
         Ok(g) => Some(g),
         Err(e) => {
