@@ -5,6 +5,10 @@
 //! 1 m) and 8 room cells of the office (2 x 2 x 1 m). Throughput is cells per second. Before each
 //! scene the bench prints the objects each rasteriser hides.
 //!
+//! The `bake/` group times the conservative bake (`vis5d build
+//! --conservative`, `conservative::bake`) of the committed office and city
+//! at depth 6 (127 oracle cells) on the CPU, and prints the mean leaf set.
+//!
 //! Run: `cargo bench --bench oracle` (results in notes/oracle.md).
 
 use std::time::Duration;
@@ -107,5 +111,38 @@ fn oracle(c: &mut Criterion) {
     bench_scene(c, "office", 2.0);
 }
 
-criterion_group!(benches, oracle);
+fn bake(c: &mut Criterion) {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut g = c.benchmark_group("bake");
+    g.sample_size(10);
+    g.measurement_time(Duration::from_secs(10));
+    for name in ["office", "city"] {
+        let scene =
+            vis5d::scene::load(root.join("scenes").join(format!("{name}.obj"))).expect("committed");
+        let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu())
+            .expect("valid parameters");
+        let params = vis5d::conservative::BakeParams {
+            max_depth: 6,
+            ..Default::default()
+        };
+        let (tree, _) = vis5d::conservative::bake(&oracle, &params, &|_| {}).expect("bakes");
+        let leaves = tree.leaves();
+        let mean = leaves
+            .iter()
+            .map(|l| tree.nodes()[l.node].set.count())
+            .sum::<usize>() as f64
+            / leaves.len() as f64;
+        eprintln!(
+            "bake {name}: {} leaves, {mean:.1} of {} objects a leaf",
+            leaves.len(),
+            scene.objects().len()
+        );
+        g.bench_function(name, |b| {
+            b.iter(|| vis5d::conservative::bake(&oracle, &params, &|_| {}).expect("bakes"))
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, oracle, bake);
 criterion_main!(benches);
