@@ -171,7 +171,16 @@ impl BakeParams {
             return Err(bad(
                 "view_box",
                 "finite with min <= max",
-                &format!("{:?}..{:?}", b.min, b.max),
+                &format!("{:?} .. {:?}", b.min.to_array(), b.max.to_array()),
+            ));
+        }
+        if let Some(b) = self.view_box
+            && crate::builder::root_of(b, self.view_grow).is_none()
+        {
+            return Err(bad(
+                "view_box",
+                crate::builder::ROOT_FITS,
+                &format!("{:?} .. {:?}", b.min.to_array(), b.max.to_array()),
             ));
         }
         if self.max_nodes == 0 {
@@ -307,7 +316,7 @@ pub fn bake(
         return Err(BakeError::Parameter {
             name: "view_box",
             expected: "a box whose size fits in f32 (about 3e38), grown by view_grow",
-            value: format!("{:?}..{:?}", root.min, root.max),
+            value: format!("{:?} .. {:?}", root.min.to_array(), root.max.to_array()),
         });
     }
     // Every node costs an oracle run: refuse, before the first, a tree

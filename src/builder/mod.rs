@@ -373,6 +373,15 @@ impl BuildParams {
                 &format!("{:?} .. {:?}", b.min.to_array(), b.max.to_array()),
             ));
         }
+        if let Some(b) = self.view_box
+            && root_of(b, self.view_grow).is_none()
+        {
+            return Err(bad(
+                "view_box",
+                ROOT_FITS,
+                &format!("{:?} .. {:?}", b.min.to_array(), b.max.to_array()),
+            ));
+        }
         Ok(())
     }
 
@@ -386,6 +395,23 @@ impl BuildParams {
         let b = b.expanded(self.view_grow * b.diagonal());
         b.thickened(FLAT_THICKNESS * b.diagonal())
     }
+}
+
+/// What a view box must be for its root cell to exist in f32.
+pub(crate) const ROOT_FITS: &str =
+    "a box whose size, grown, fits in f32 (a diagonal under about 1.8e19)";
+
+/// The root box grown from the view box `b` by `grow` diagonals and
+/// thickened where flat ([`BuildParams::root_box`]), or `None` when it
+/// does not fit in f32 (its diagonal overflows, and the box would be NaN).
+pub(crate) fn root_of(b: Aabb, grow: f32) -> Option<Aabb> {
+    let d = b.diagonal();
+    if !d.is_finite() {
+        return None;
+    }
+    let grown = b.expanded(grow * d);
+    let root = grown.thickened(FLAT_THICKNESS * grown.diagonal());
+    (root.min.is_finite() && root.max.is_finite() && root.diagonal().is_finite()).then_some(root)
 }
 
 impl BuildParams {

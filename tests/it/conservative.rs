@@ -316,6 +316,8 @@ fn build_conservative_from_the_command_line() {
             vec!["--conservative", "--view-box=-1e19,-1,-1,1e19,1,1"],
             "--view-box",
         ),
+        // The sampled build too (its root box was NaN).
+        (vec!["--view-box=-1e19,-1,-1,1e19,1,1"], "--view-box"),
         (
             vec!["--conservative", "--max-depth", "64", "--min-cell", "1e-6"],
             "--max-nodes",
