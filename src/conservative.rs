@@ -57,7 +57,8 @@ pub struct BakeParams {
     pub max_depth: u32,
     /// The smallest cell side, as a fraction of the root's extent along it.
     pub min_cell_fraction: f32,
-    /// Split values lie on a 2^q grid of the node's range.
+    /// Split values lie on a 2^q grid of the node's range; the bake cuts
+    /// at middles only, so 1 (the default) codes them.
     pub grid_bits: u32,
     /// The positions to bake for, local coordinates (default: the scene's
     /// bounding box).
@@ -70,8 +71,8 @@ pub struct BakeParams {
     /// hold the fewest triangles together (the oracle runs on the halves
     /// of every cut tried); `false` (the default) cuts the longest side.
     /// On the office, trying took answers from 22.6 to 20.9 objects a
-    /// view for 2.3x the time, where one more level of longest-side cuts
-    /// gave 20.6 for 1.6x (`notes/oracle.md`).
+    /// view for 2.4-3x the time, where one more level of longest-side cuts
+    /// gave 20.6 for 1.7x (`notes/oracle.md`).
     pub try_cuts: bool,
     /// Stop cutting where this many levels in a row proved nothing more
     /// hidden (a cell's set equal to its parent's, that one's to its
@@ -90,7 +91,7 @@ impl Default for BakeParams {
             triangle_budget: None,
             max_depth: 10,
             min_cell_fraction: 1.0 / 64.0,
-            grid_bits: 10,
+            grid_bits: 1,
             view_box: None,
             view_grow: 0.0,
             max_nodes: 1 << 24,
@@ -149,7 +150,7 @@ impl BakeParams {
             expected,
             value: value.to_string(),
         };
-        if self.max_depth > 64 {
+        if self.max_depth > crate::tree::MAX_DEPTH {
             return Err(bad("max_depth", "at most 64", &self.max_depth));
         }
         if !(self.min_cell_fraction >= 1e-6 && self.min_cell_fraction < 0.5) {
@@ -245,7 +246,8 @@ pub struct BakeStats {
     pub cells: u64,
     /// Cells cut because their set was over the budget.
     pub split: u64,
-    /// Leaves over the budget that the depth or size limit kept whole.
+    /// Leaves over the budget, kept whole by the depth limit, the smallest
+    /// cell, `stall_levels` or the node budget.
     pub over_budget_leaves: u64,
     /// Oracle time summed over the cells (all threads).
     pub oracle_time: Duration,
@@ -288,7 +290,9 @@ struct Ctx<'a> {
     triangles: Vec<u64>,
     budget: u64,
     params: &'a BakeParams,
-    min_width: [f32; 3],
+    /// How many times a side may be halved: its halves stay at least
+    /// `min_cell_fraction` of the root's side.
+    halvings: u32,
     root_measure: f64,
     nodes: AtomicU64,
     too_many: AtomicBool,
@@ -315,15 +319,15 @@ pub fn bake(
     if !(root.min.is_finite() && root.max.is_finite() && (root.max - root.min).is_finite()) {
         return Err(BakeError::Parameter {
             name: "view_box",
-            expected: "a box whose size fits in f32 (about 3e38), grown by view_grow",
+            expected: crate::builder::ROOT_FITS,
             value: format!("{:?} .. {:?}", root.min.to_array(), root.max.to_array()),
         });
     }
     // Every node costs an oracle run: refuse, before the first, a tree
     // that could outgrow the node budget (the depth limit and the smallest
     // cell bound it), rather than fail hours later.
-    let per_side = (1.0 / f64::from(params.min_cell_fraction)).log2().floor() as u32;
-    let most_leaves_log2 = params.max_depth.min(3 * per_side);
+    let halvings = (1.0 / f64::from(params.min_cell_fraction)).log2().floor() as u32;
+    let most_leaves_log2 = params.max_depth.min(3 * halvings);
     let most_nodes = if most_leaves_log2 >= 63 {
         u64::MAX
     } else {
@@ -334,7 +338,6 @@ pub fn bake(
             max_nodes: params.max_nodes,
         });
     }
-    let extent = root.max - root.min;
     let ctx = Ctx {
         oracle,
         triangles: scene
@@ -344,11 +347,7 @@ pub fn bake(
             .collect(),
         budget: params.budget(scene),
         params,
-        min_width: [
-            extent.x * params.min_cell_fraction,
-            extent.y * params.min_cell_fraction,
-            extent.z * params.min_cell_fraction,
-        ],
+        halvings,
         root_measure: Cell::all_directions(root).measure(),
         nodes: AtomicU64::new(1),
         too_many: AtomicBool::new(false),
@@ -359,7 +358,7 @@ pub fn bake(
         done: Mutex::new(0.0),
         progress,
     };
-    let baked = bake_cell(&ctx, Cell::all_directions(root), 0, None, None, 0);
+    let baked = bake_cell(&ctx, Cell::all_directions(root), 0, None, None, 0, [0; 3]);
     if ctx.too_many.load(Ordering::Relaxed) {
         return Err(BakeError::TooManyNodes {
             max_nodes: params.max_nodes,
@@ -405,7 +404,7 @@ fn oracle_set(ctx: &Ctx, cell: &Cell, parent: Option<&ObjectSet>) -> ObjectSet {
 
 /// Bakes `cell`, whose set is `known` when a tried cut already ran the
 /// oracle on it; `stalled` levels above it in a row proved nothing more
-/// hidden.
+/// hidden, and its sides were halved `halvings` times.
 fn bake_cell(
     ctx: &Ctx,
     cell: Cell,
@@ -413,6 +412,7 @@ fn bake_cell(
     parent: Option<&ObjectSet>,
     known: Option<ObjectSet>,
     stalled: u32,
+    halvings: [u32; 3],
 ) -> Baked {
     let set = known.unwrap_or_else(|| oracle_set(ctx, &cell, parent));
     let stalled = if parent == Some(&set) { stalled + 1 } else { 0 };
@@ -423,22 +423,20 @@ fn bake_cell(
         if over {
             ctx.over_budget.fetch_add(1, Ordering::Relaxed);
         }
-        let done = {
-            let mut done = ctx.done.lock().unwrap_or_else(|p| p.into_inner());
-            *done += cell.measure() / ctx.root_measure;
-            *done
-        };
+        // Reported under the lock, so that the share only grows.
+        let mut done = ctx.done.lock().unwrap_or_else(|p| p.into_inner());
+        *done += cell.measure() / ctx.root_measure;
         (ctx.progress)(done.min(1.0));
         Baked { set, split: None }
     };
-    // The cuts: the middle of each side whose halves are not under the
-    // smallest cell (a cell too thin for the grid in f32 is kept whole),
-    // longest side first.
+    // The cuts: the middle of each side halved fewer times than the
+    // smallest cell allows (a cell too thin for the grid in f32 is kept
+    // whole), longest side first.
     let q = ctx.params.grid_bits;
     let code = 1u32 << (q - 1);
     let mut cuts: Vec<(usize, f32)> = if over && depth < ctx.params.max_depth && !stalls {
         (0..3)
-            .filter(|&d| cell.width(d) > 0.0 && cell.width(d) * 0.5 >= ctx.min_width[d])
+            .filter(|&d| cell.width(d) > 0.0 && halvings[d] < ctx.halvings)
             .map(|d| (d, grid_value(cell.lo[d], cell.hi[d], code, q)))
             .filter(|&(d, v)| v > cell.lo[d] && v < cell.hi[d])
             .collect()
@@ -487,13 +485,15 @@ fn bake_cell(
         (cuts[0].0, cuts[0].1, None)
     };
     let (below, above) = cell.split(dim, value);
+    let mut cut = halvings;
+    cut[dim] += 1;
     let (known_below, known_above) = match halves {
         Some((b, a)) => (Some(b), Some(a)),
         None => (None, None),
     };
     let (b, a) = rayon::join(
-        || bake_cell(ctx, below, depth + 1, Some(&set), known_below, stalled),
-        || bake_cell(ctx, above, depth + 1, Some(&set), known_above, stalled),
+        || bake_cell(ctx, below, depth + 1, Some(&set), known_below, stalled, cut),
+        || bake_cell(ctx, above, depth + 1, Some(&set), known_above, stalled, cut),
     );
     // The union of the children's sets: a subset of this cell's oracle set,
     // and what a range query over the cell answers anyway.

@@ -132,7 +132,7 @@ pub struct BuildArgs {
     #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().angular_candidates, value_parser = clap::value_parser!(u32).range(1..=64))]
     angular_candidates: u32,
     /// Split values lie on a 2^q grid of the node's range [1 to 16].
-    #[arg(long, default_value_t = BuildParams::default().grid_bits, value_parser = clap::value_parser!(u32).range(1..=16))]
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().grid_bits, value_parser = clap::value_parser!(u32).range(1..=16))]
     grid_bits: u32,
     /// Rejected samples per object and cell after which it is kept as
     /// visible [1 to 10,000,000].
@@ -168,7 +168,8 @@ pub struct BuildArgs {
     /// extended-projection oracle (papers/001, `vis5d oracle`) cannot prove
     /// hidden from its box, cells cut in two where their set holds more
     /// than --triangle-budget triangles (papers/001 sec. 6). It never drops
-    /// a visible object; its sets are larger than the sampled tree's. Same
+    /// a visible object; its sets are usually larger than the sampled
+    /// tree's. Same
     /// file format and queries; `vis5d stat` shows the method. The
     /// sampler's flags do not apply.
     #[arg(long)]
@@ -180,7 +181,7 @@ pub struct BuildArgs {
     /// With --conservative: try the middle of each side of a cell and keep
     /// the cut whose halves hold the fewest triangles, instead of cutting
     /// the longest side (runs the oracle on the halves of every cut tried:
-    /// about 2.3x the time).
+    /// 2.4-3x the time).
     #[arg(long, requires = "conservative")]
     try_cuts: bool,
     /// With --conservative: stop cutting where this many levels in a row
@@ -506,7 +507,8 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
         triangle_budget: args.triangle_budget,
         max_depth: args.max_depth.unwrap_or(BakeParams::default().max_depth),
         min_cell_fraction: args.min_cell,
-        grid_bits: args.grid_bits,
+        // The bake cuts at middles only: one bit codes them.
+        grid_bits: 1,
         view_box: None,
         view_grow: args.grow,
         max_nodes: args.max_nodes,

@@ -135,7 +135,8 @@ enum Command {
     /// path from `--views`), renders ID buffers by casting one ray per
     /// pixel, then measures for each method (view-frustum culling, the lazy
     /// occlusion grid of Hey et al. with lazy and busy updates, the vis5d
-    /// tree, the extended-projection oracle of a cell around the eye) the
+    /// tree, a conservative tree with `--conservative`, the
+    /// extended-projection oracle of a cell around the eye) the
     /// objects and triangles it draws, the pixels whose object it
     /// misses, the set errors Q_u and Q_o against the objects seen, and its
     /// time. Writes DIR/index.html (tables and SVG plots), DIR/report.json

@@ -167,6 +167,10 @@ pub fn run(args: &StatArgs) -> Result<()> {
             100.0 * l.largest_missed_fraction_95,
             l.mean_undecided
         )?,
+        None if r.method == "conservative" => writeln!(
+            out,
+            "  leaf records     none (conservative: no set rests on ray evidence)"
+        )?,
         None => writeln!(out, "  leaf records     none (a file before version 3)")?,
     }
     writeln!(out, "  build parameters")?;

@@ -97,8 +97,8 @@ fn the_conservative_tree_misses_nothing_on_every_committed_scene() {
     for name in ["apartment", "office", "city", "forest", "machine"] {
         let s = scene::load(committed(&format!("{name}.obj"))).unwrap();
         let tree = bake_with(&s, Rasteriser::cpu(), &small());
-        // Cut to the depth limit, or less where three levels in a row
-        // proved nothing more hidden.
+        // Cut to the depth limit, or less where a set fell under the
+        // budget of 0 triangles (an empty set).
         assert!(tree.leaf_count() <= 32, "{name}");
         let n = s.objects().len();
         let mean: f64 = tree
