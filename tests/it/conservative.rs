@@ -285,7 +285,6 @@ fn build_conservative_from_the_command_line() {
         "build",
         model.to_str().unwrap(),
         "--conservative",
-        "--cpu",
         "--max-depth",
         "3",
         "--try-cuts",
@@ -298,6 +297,7 @@ fn build_conservative_from_the_command_line() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(j["method"], "conservative");
+    assert_eq!(j["rasteriser"], "CPU", "the bake's default");
     assert_eq!(j["leaves"], 8);
     assert_eq!(j["nodes"], 15);
     // Trying the cuts runs the oracle on halves not taken.
@@ -307,10 +307,30 @@ fn build_conservative_from_the_command_line() {
     assert!(o.status.success());
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(j["method"], "conservative");
+    // --gpu: wgpu where an adapter exists (CI requires one: lavapipe).
+    let o = vis5d(&[
+        "build",
+        model.to_str().unwrap(),
+        "--conservative",
+        "--gpu",
+        "--max-depth",
+        "2",
+        "--dry-run",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    if std::env::var_os("VIS5D_REQUIRE_GPU").is_some() {
+        assert!(
+            j["rasteriser"].as_str().unwrap().starts_with("GPU: "),
+            "{j}"
+        );
+    }
     for (flags, says) in [
         (vec!["--conservative", "--s-thresh", "0.02"], "--s-thresh"),
         (vec!["--conservative", "--edge-rays", "2"], "--edge-rays"),
         (vec!["--triangle-budget", "100"], "--conservative"),
+        (vec!["--gpu"], "--conservative"),
         (vec!["--conservative", "--min-cell", "0.7"], "--min-cell"),
         (
             vec!["--conservative", "--view-box=-1e19,-1,-1,1e19,1,1"],
