@@ -22,7 +22,7 @@ use crate::common::{
     parse_box, parse_pair, print_shape, progress_bar,
 };
 use crate::memory;
-use crate::oracle::GpuWarning;
+use crate::oracle::{GpuWarning, gpu_else_cpu};
 
 #[derive(Args, Debug)]
 pub struct BuildArgs {
@@ -326,26 +326,10 @@ pub fn run(args: &BuildArgs) -> Result<()> {
     }
     let mut params = args.params();
     params.validate().map_err(|e| match &e {
-        BuildError::Parameter { name, .. } => {
-            let flag = match *name {
-                "min_cell_fraction" => "--min-cell".to_owned(),
-                "min_angle_fraction" => "--min-angle".to_owned(),
-                "view_grow" => "--grow".to_owned(),
-                "max_depth (plus the angular cuts)" => "--max-depth".to_owned(),
-                other => flag(other),
-            };
-            anyhow::anyhow!("{flag}: {e}")
-        }
+        BuildError::Parameter { name, .. } => anyhow::anyhow!("{}: {e}", build_flag(name)),
         _ => e.into(),
     })?;
-    let output = args
-        .output
-        .clone()
-        .unwrap_or_else(|| args.file.with_extension("v5d"));
-    if !args.dry_run {
-        // Fail before the build, not after it.
-        check_output(&output, "tree", &[&args.file])?;
-    }
+    let output = checked_output(args)?;
     // Work whose size is known: the caches of cell rays (a 5D point and a
     // hit per ray, one cache per level of each thread's recursion) and
     // one verification view's rays and hits.
@@ -355,13 +339,6 @@ pub fn run(args: &BuildArgs) -> Result<()> {
         "--cache-rays",
         "cache fewer rays or build shallower trees",
     )?;
-    if args.verify_views > 0 {
-        memory::check(
-            u64::from(args.verify_resolution).pow(2) * 48,
-            "--verify-resolution",
-            "render smaller verification views",
-        )?;
-    }
     let (scene, load_seconds) = load_scene(&args.file)?;
     if let Some(local) = local_view_box(args, &scene)? {
         params.view_box = Some(local);
@@ -427,6 +404,40 @@ pub fn run(args: &BuildArgs) -> Result<()> {
         print_build(&mut out, &report)?;
     }
     Ok(())
+}
+
+/// The flag behind a parameter of the builder or the bake, as their
+/// errors name it.
+fn build_flag(name: &str) -> String {
+    match name {
+        "min_cell_fraction" => "--min-cell".to_owned(),
+        "min_angle_fraction" => "--min-angle".to_owned(),
+        "view_grow" => "--grow".to_owned(),
+        "view_box" => "--view-box".to_owned(),
+        "max_depth (plus the angular cuts)" => "--max-depth".to_owned(),
+        other => flag(other),
+    }
+}
+
+/// Where the tree goes (`-o`, else beside the model), checked before any
+/// work (unless `--dry-run`), and the memory of a verification view.
+fn checked_output(args: &BuildArgs) -> Result<PathBuf> {
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| args.file.with_extension("v5d"));
+    if !args.dry_run {
+        // Fail before the build, not after it.
+        check_output(&output, "tree", &[&args.file])?;
+    }
+    if args.verify_views > 0 {
+        memory::check(
+            u64::from(args.verify_resolution).pow(2) * 48,
+            "--verify-resolution",
+            "render smaller verification views",
+        )?;
+    }
+    Ok(output)
 }
 
 /// `--view-box` in the scene's local frame, if given.
@@ -519,32 +530,11 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
         stall_levels: args.stall_levels,
     };
     let bake_flag = |e: BakeError| match &e {
-        BakeError::Parameter { name, .. } => {
-            let flag = match *name {
-                "min_cell_fraction" => "--min-cell".to_owned(),
-                "view_grow" => "--grow".to_owned(),
-                "view_box" => "--view-box".to_owned(),
-                other => flag(other),
-            };
-            anyhow::anyhow!("{flag}: {e}")
-        }
+        BakeError::Parameter { name, .. } => anyhow::anyhow!("{}: {e}", build_flag(name)),
         _ => e.into(),
     };
     params.validate().map_err(bake_flag)?;
-    let output = args
-        .output
-        .clone()
-        .unwrap_or_else(|| args.file.with_extension("v5d"));
-    if !args.dry_run {
-        check_output(&output, "tree", &[&args.file])?;
-    }
-    if args.verify_views > 0 {
-        memory::check(
-            u64::from(args.verify_resolution).pow(2) * 48,
-            "--verify-resolution",
-            "render smaller verification views",
-        )?;
-    }
+    let output = checked_output(args)?;
     let (scene, load_seconds) = load_scene(&args.file)?;
     if let Some(local) = local_view_box(args, &scene)? {
         params.view_box = Some(local);
@@ -554,11 +544,7 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
     }
     params.max_nodes = node_budget(&scene, params.max_nodes);
     let rasteriser = if args.gpu {
-        let r = Rasteriser::best();
-        if let Some(why) = r.cpu_reason() {
-            say!("note: {why}; using the CPU rasteriser");
-        }
-        r
+        gpu_else_cpu()
     } else {
         Rasteriser::cpu()
     };

@@ -61,12 +61,18 @@ impl OracleFlags {
         if self.cpu {
             return Rasteriser::cpu();
         }
-        let r = Rasteriser::best();
-        if let Some(why) = r.cpu_reason() {
-            say!("note: {why}; using the CPU rasteriser");
-        }
-        r
+        gpu_else_cpu()
     }
+}
+
+/// The GPU rasteriser where there is one, else the CPU's (a note on
+/// stderr says why).
+pub fn gpu_else_cpu() -> Rasteriser {
+    let r = Rasteriser::best();
+    if let Some(why) = r.cpu_reason() {
+        say!("note: {why}; using the CPU rasteriser");
+    }
+    r
 }
 
 /// Says on stderr, once, as soon as a depth map failed on the GPU (and was
