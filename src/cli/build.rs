@@ -191,6 +191,20 @@ pub struct BuildArgs {
     #[arg(long, requires = "conservative", default_value_t = BakeParams::default().stall_levels,
           value_parser = clap::value_parser!(u32).range(0..=64))]
     stall_levels: u32,
+    /// With --conservative: the oracle's occlusion sweep, planes per face
+    /// spaced from the nearest occluder to the farthest (`vis5d oracle
+    /// --sweep-planes`). Off by default in the bake: with 4 sweep planes
+    /// and 4 patch planes a cell costs about 4-5x the time for 10-15% fewer
+    /// objects kept (notes/oracle.md) [0 to 64].
+    #[arg(long, requires = "conservative", default_value_t = 0,
+          value_parser = clap::value_parser!(u8).range(0..=64))]
+    sweep_planes: u8,
+    /// With --conservative: the sweep's planes per face at the largest
+    /// axis-aligned patches, floors, slabs and walls drawn whole (`vis5d
+    /// oracle --sweep-patches`); off by default in the bake [0 to 64].
+    #[arg(long, requires = "conservative", default_value_t = 0,
+          value_parser = clap::value_parser!(u8).range(0..=64))]
+    sweep_patches: u8,
     /// With --conservative: rasterise the oracle's Depth Maps on the GPU
     /// (wgpu) where one exists. The bake uses the CPU by default: one map
     /// per submission, the GPU is slower per cell today (notes/oracle.md:
@@ -549,7 +563,12 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
         Rasteriser::cpu()
     };
     let start = Instant::now();
-    let oracle = Oracle::new(&scene, OracleParams::default(), rasteriser)?;
+    let oracle_params = OracleParams {
+        sweep_planes: args.sweep_planes.into(),
+        sweep_patches: args.sweep_patches.into(),
+        ..OracleParams::default()
+    };
+    let oracle = Oracle::new(&scene, oracle_params, rasteriser)?;
     let occluder_seconds = start.elapsed().as_secs_f64();
     let bar = progress_bar("baking", 1000);
     let gpu_warning = GpuWarning::default();

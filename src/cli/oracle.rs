@@ -32,6 +32,18 @@ pub struct OracleFlags {
     /// those that hide most objects the others do not [1 to 16].
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=16))]
     pub planes_per_face: u8,
+    /// Occlusion sweep (papers/001 sec. 5): planes per face spaced
+    /// geometrically from the nearest occluder to the farthest, each
+    /// holding the previous one reprojected, so that many small occluders
+    /// fuse [0 to 64; 0 with --sweep-patches 0 turns the sweep off].
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(0..=64))]
+    pub sweep_planes: u8,
+    /// Occlusion sweep: planes per face at the axis-aligned patches
+    /// (floors, slabs, walls, flat roofs) that subtend the largest solid
+    /// angles from the cell, each patch drawn whole, holes and all [0 to
+    /// 64].
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(0..=64))]
+    pub sweep_patches: u8,
     /// Rasterise the Depth Maps on the CPU even when a GPU adapter exists
     /// (the default uses the GPU through wgpu, and the CPU when there is
     /// none).
@@ -47,6 +59,8 @@ impl OracleFlags {
             extension: self.extension,
             max_occluders: self.max_occluders as usize,
             planes_per_face: self.planes_per_face.into(),
+            sweep_planes: self.sweep_planes.into(),
+            sweep_patches: self.sweep_patches.into(),
             ..OracleParams::default()
         };
         p.validate().map_err(|e| match &e {
@@ -143,6 +157,8 @@ struct OracleJson<'a> {
     resolution: usize,
     backend: String,
     planes: Vec<PlaneJson>,
+    sweep_planes: usize,
+    sweep_hidden: usize,
     seconds: Seconds,
 }
 
@@ -202,6 +218,8 @@ pub fn run(args: &OracleArgs) -> Result<()> {
                 hidden: p.hidden,
             })
             .collect(),
+        sweep_planes: report.sweep_planes,
+        sweep_hidden: report.sweep_hidden,
         seconds: Seconds {
             load,
             prepare,
@@ -243,6 +261,13 @@ pub fn run(args: &OracleArgs) -> Result<()> {
             json.resolution,
             json.resolution,
             p.hidden
+        )?;
+    }
+    if json.sweep_planes > 0 {
+        writeln!(
+            out,
+            "  occlusion sweep: {} planes, {} more objects hidden",
+            json.sweep_planes, json.sweep_hidden
         )?;
     }
     writeln!(

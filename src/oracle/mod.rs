@@ -55,10 +55,12 @@ mod oracle_check;
 #[cfg(feature = "gpu")]
 mod oracle_gpu;
 mod oracle_occluders;
+mod oracle_patches;
 mod oracle_plane;
 mod oracle_project;
 mod oracle_raster;
 mod oracle_slice;
+mod oracle_sweep;
 
 pub use oracle_check::{CheckParams, CheckReport, LeafCheck, Suspect, Violation, check_tree};
 #[cfg(feature = "gpu")]
@@ -76,10 +78,13 @@ use crate::geom::polygon::{convex_hull, signed_area};
 use crate::geom::{Aabb, BoxTree};
 use crate::scene::Scene;
 use oracle_occluders::{Occluder, SlicedSolid};
+use oracle_patches::Patch;
 use oracle_plane::DepthMap;
 use oracle_project::{
-    Frame, clip_above, clip_below, corners, improved_rect, occludee_rect, occluder_views, project,
+    Frame, clip_above, clip_below, corners, improved_rect, occludee_polygon, occludee_rect,
+    occluder_views, project,
 };
+use oracle_sweep::{Sweep, SweepPlane};
 
 /// Settings of the oracle.
 #[derive(Clone, Debug, PartialEq)]
@@ -101,6 +106,16 @@ pub struct OracleParams {
     /// Planes per face: the best position, then those that hide most
     /// objects the chosen ones do not (the paper used one).
     pub planes_per_face: usize,
+    /// Occlusion sweep (sec. 5): planes per face spaced geometrically from
+    /// the nearest occluder to the farthest (0: none).
+    pub sweep_planes: usize,
+    /// Occlusion sweep: planes per face at the axis-aligned patches
+    /// (floors, slabs, walls) that subtend the largest solid angles from
+    /// the cell, each drawn there whole (0: none).
+    pub sweep_patches: usize,
+    /// How far each sweep plane's rectangle reaches beyond the cell's
+    /// face, in multiples of its distance from the face.
+    pub sweep_extension: f64,
 }
 
 impl Default for OracleParams {
@@ -113,6 +128,9 @@ impl Default for OracleParams {
             placement_resolution: 64,
             max_occluders: 4096,
             planes_per_face: 2,
+            sweep_planes: 4,
+            sweep_patches: 4,
+            sweep_extension: 3.0,
         }
     }
 }
@@ -155,6 +173,13 @@ impl OracleParams {
         }
         if !(self.extension.is_finite() && self.extension >= 0.0) {
             return Err(bad("extension", "finite and >= 0", &self.extension));
+        }
+        if !(self.sweep_extension.is_finite() && self.sweep_extension >= 0.0) {
+            return Err(bad(
+                "sweep_extension",
+                "finite and >= 0",
+                &self.sweep_extension,
+            ));
         }
         for (name, n) in [
             ("plane_candidates", self.plane_candidates),
@@ -218,6 +243,10 @@ pub struct CellReport {
     /// Per plane, in the order +x, -x, +y, -y, +z, -z; planes with no occluder in
     /// front are left out.
     pub planes: Vec<PlaneReport>,
+    /// Planes of the occlusion sweeps, all faces together.
+    pub sweep_planes: usize,
+    /// Objects only the sweeps proved hidden.
+    pub sweep_hidden: usize,
     /// Time by stage.
     pub times: CellTimes,
 }
@@ -228,6 +257,7 @@ pub struct Oracle<'a> {
     scene: &'a Scene,
     occluders: Vec<Occluder>,
     solids: Vec<SlicedSolid>,
+    patches: Vec<Patch>,
     counts: OccluderCounts,
     hierarchy: BoxTree,
     params: OracleParams,
@@ -249,10 +279,16 @@ impl<'a> Oracle<'a> {
             counts,
         } = oracle_occluders::extract(scene);
         let boxes: Vec<Aabb> = scene.objects().iter().map(|o| o.bounds).collect();
+        let patches = if params.sweep_patches > 0 {
+            oracle_patches::extract(scene, 0.0)
+        } else {
+            Vec::new()
+        };
         Ok(Self {
             scene,
             occluders,
             solids,
+            patches,
             counts,
             hierarchy: BoxTree::new(&boxes),
             params,
@@ -319,6 +355,8 @@ impl<'a> Oracle<'a> {
                 hidden_by_parent: 0,
                 touching: objects,
                 planes: Vec::new(),
+                sweep_planes: 0,
+                sweep_hidden: 0,
                 times: CellTimes::default(),
             };
         }
@@ -334,14 +372,19 @@ impl<'a> Oracle<'a> {
         }
         let mut planes = Vec::new();
         let mut maps: Vec<(Frame, DepthMap, f64)> = Vec::new();
+        let mut sweeps: Vec<Sweep> = Vec::new();
         for frame in Frame::ALL {
-            let Some(found) = self.plane(frame, cmin, cmax, parent_hidden, &mut times, rasterise)
+            let Some((found, face)) =
+                self.plane(frame, cmin, cmax, parent_hidden, &mut times, rasterise)
             else {
                 continue;
             };
             for (map, wp, report) in found {
                 planes.push(report);
                 maps.push((frame, map, wp));
+            }
+            if let Some(sweep) = self.sweep(frame, cmin, cmax, &face, &mut times, rasterise) {
+                sweeps.push(sweep);
             }
         }
         // Occludee tests: whole boxes per plane, through the hierarchy.
@@ -359,8 +402,20 @@ impl<'a> Oracle<'a> {
             );
             planes[k].hidden = hidden.count() - before;
         }
-        // Boxes not hidden whole: cut into the pieces in front of each face.
+        // Boxes not hidden whole: cut into the pieces in front of each face;
+        // then the sweeps, whole and in pieces.
+        let on_maps = |pmin: DVec3, pmax: DVec3| {
+            maps.iter().any(|(frame, map, wp)| {
+                let (lmin, lmax) = frame.local_box(cmin, cmax);
+                let (a, b) = frame.local_box(pmin, pmax);
+                box_hidden(map, lmin, lmax, a, b, *wp, slack)
+            })
+        };
+        let on_sweeps = |pmin: DVec3, pmax: DVec3| {
+            oracle_sweep::sweep_hides(&sweeps, cmin, cmax, pmin, pmax, slack)
+        };
         let mut touching = 0;
+        let mut sweep_hidden = 0;
         for (i, o) in self.scene.objects().iter().enumerate() {
             if hidden.contains(i) {
                 continue;
@@ -370,8 +425,20 @@ impl<'a> Oracle<'a> {
                 touching += 1;
                 continue;
             }
-            if pieces_hidden(&maps, cmin, cmax, qmin, qmax, slack) {
+            if pieces_hidden(&on_maps, cmin, cmax, qmin, qmax) {
                 hidden.insert(i);
+            } else if !sweeps.is_empty()
+                && (on_sweeps(qmin, qmax)
+                    || pieces_hidden(
+                        &|a, b| on_maps(a, b) || on_sweeps(a, b),
+                        cmin,
+                        cmax,
+                        qmin,
+                        qmax,
+                    ))
+            {
+                hidden.insert(i);
+                sweep_hidden += 1;
             }
         }
         times.test = start.elapsed();
@@ -382,6 +449,8 @@ impl<'a> Oracle<'a> {
             hidden_by_parent,
             touching,
             planes,
+            sweep_planes: sweeps.iter().map(|s| s.planes.len()).sum(),
+            sweep_hidden,
             times,
         }
     }
@@ -396,7 +465,7 @@ impl<'a> Oracle<'a> {
         parent_hidden: Option<&ObjectSet>,
         times: &mut CellTimes,
         rasterise: &mut dyn FnMut(usize, &[ProjectedOccluder]) -> Vec<f64>,
-    ) -> Option<Vec<(DepthMap, f64, PlaneReport)>> {
+    ) -> Option<(Vec<PlaneMap>, FaceSetup)> {
         let start = Instant::now();
         let (lmin, lmax) = frame.local_box(cmin, cmax);
         let centre = 0.5 * (lmin + lmax);
@@ -503,9 +572,12 @@ impl<'a> Oracle<'a> {
                 lmax,
                 wp,
                 m,
+                self.plane_rect(lmin, lmax, wp),
+                f64::NEG_INFINITY,
             );
             let mut level0 = cpu_rasterise(m, &occ);
-            self.draw_slices(frame, &solids, lmin, lmax, wp, m, &mut level0);
+            let rect = self.plane_rect(lmin, lmax, wp);
+            self.draw_slices(frame, &solids, rect, wp, m, &mut level0);
             let filled = level0.iter().filter(|d| d.is_finite()).count();
             // The score: objects this plane alone hides at the low
             // resolution, then filled pixels (the paper's measure).
@@ -546,16 +618,148 @@ impl<'a> Oracle<'a> {
             }
         }
         times.select += start.elapsed();
-        Some(
-            chosen
-                .into_iter()
-                .map(|wp| {
-                    self.full_map(
-                        frame, &ranked, &solids, &eyes, lmin, lmax, wp, times, rasterise,
-                    )
-                })
-                .collect(),
-        )
+        let found = chosen
+            .into_iter()
+            .map(|wp| {
+                self.full_map(
+                    frame, &ranked, &solids, &eyes, lmin, lmax, wp, times, rasterise,
+                )
+            })
+            .collect();
+        Some((
+            found,
+            FaceSetup {
+                ranked,
+                solids,
+                eyes,
+            },
+        ))
+    }
+
+    /// The occlusion sweep away from one face (see `oracle_sweep.rs`):
+    /// planes at the largest axis-aligned patches in front of the face and
+    /// spaced geometrically from the nearest occluder to the farthest, each
+    /// holding the previous one reprojected, the convex occluders between
+    /// the two, the cuts of solids and the patches in it. `None` when the
+    /// sweep is off or finds no plane.
+    fn sweep(
+        &self,
+        frame: Frame,
+        cmin: DVec3,
+        cmax: DVec3,
+        face: &FaceSetup,
+        times: &mut CellTimes,
+        rasterise: &mut dyn FnMut(usize, &[ProjectedOccluder]) -> Vec<f64>,
+    ) -> Option<Sweep> {
+        if self.params.sweep_planes == 0 && self.params.sweep_patches == 0 {
+            return None;
+        }
+        let start = Instant::now();
+        let (lmin, lmax) = frame.local_box(cmin, cmax);
+        let centre = 0.5 * (lmin + lmax);
+        let sign = if frame.positive { 1.0 } else { -1.0 };
+        // Patch planes strictly in front of the face, largest solid angle
+        // first.
+        let mut at_patches: Vec<(f64, f64, usize)> = self
+            .patches
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.axis == frame.axis && sign * p.coord > lmax.z)
+            .map(|(i, p)| {
+                let d = sign * p.coord - centre.z;
+                (p.area / (d * d), sign * p.coord, i)
+            })
+            .collect();
+        at_patches.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.2.cmp(&b.2)));
+        at_patches.truncate(self.params.sweep_patches);
+        let mut positions: Vec<(f64, Option<usize>)> =
+            at_patches.iter().map(|p| (p.1, Some(p.2))).collect();
+        // Geometric planes from the nearest occluder to the farthest.
+        let (mut near, mut far) = (f64::INFINITY, f64::NEG_INFINITY);
+        for r in &face.ranked {
+            near = near.min(r.2.z);
+            far = far.max(r.3.z);
+        }
+        for s in &face.solids {
+            far = far.max(s.3);
+        }
+        for p in &positions {
+            near = near.min(p.0);
+            far = far.max(p.0);
+        }
+        let side = (lmax - lmin).truncate().min_element();
+        let first = (near - lmax.z).max(0.25 * side);
+        let last = far - lmax.z;
+        let g = self.params.sweep_planes;
+        if g > 0 && first.is_finite() && last > first {
+            for k in 1..=g {
+                let d = first * (last / first).powf(k as f64 / g as f64);
+                positions.push((lmax.z + d, None));
+            }
+        }
+        // Geometric planes closer than a millionth of their distance to a
+        // patch's plane or to the previous plane are dropped.
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * (a.max(b) - lmax.z);
+        let patch_at: Vec<f64> = at_patches.iter().map(|p| p.1).collect();
+        positions.retain(|p| p.1.is_some() || !patch_at.iter().any(|&w| close(w, p.0)));
+        positions.sort_by(|a, b| a.0.total_cmp(&b.0));
+        positions.dedup_by(|b, a| b.1.is_none() && close(a.0, b.0));
+        times.select += start.elapsed();
+        let start = Instant::now();
+        let n = self.params.resolution;
+        let mut planes: Vec<SweepPlane> = Vec::with_capacity(positions.len());
+        for &(wp, patch) in &positions {
+            // The face grown by the extension, and all of the patch drawn
+            // here, and where the previous plane's coverage can land.
+            let grow = self.params.sweep_extension * (wp - lmax.z);
+            let mut rect = (lmin.truncate() - grow, lmax.truncate() + grow);
+            if let Some(i) = patch {
+                rect = (
+                    rect.0.min(self.patches[i].min),
+                    rect.1.max(self.patches[i].max),
+                );
+            }
+            if let Some(prev) = planes.last() {
+                let (a, b) = oracle_sweep::image(prev.map.rect(), prev.wp, lmin, lmax, wp);
+                if a.cmplt(b).all() {
+                    rect = (rect.0.min(a), rect.1.max(b));
+                }
+            }
+            let after = planes.last().map_or(f64::NEG_INFINITY, |p| p.wp);
+            let occ = self.project_occluders(
+                frame,
+                &face.ranked,
+                self.params.max_occluders,
+                &face.eyes,
+                lmin,
+                lmax,
+                wp,
+                n,
+                rect,
+                after,
+            );
+            let mut level0 = if occ.is_empty() {
+                vec![f64::INFINITY; n * n]
+            } else {
+                rasterise(n, &occ)
+            };
+            self.draw_slices(frame, &face.solids, rect, wp, n, &mut level0);
+            if let Some(i) = patch {
+                oracle_patches::draw_patch(&mut level0, n, rect.0, rect.1, &self.patches[i]);
+            }
+            if let Some(prev) = planes.last() {
+                let carried =
+                    oracle_sweep::reproject(&prev.map, prev.wp, lmin, lmax, wp, rect.0, rect.1, n);
+                for (d, c) in level0.iter_mut().zip(carried) {
+                    *d = d.min(c);
+                }
+            }
+            let mut map = DepthMap::from_level0(rect.0, rect.1, n, level0);
+            map.build_pyramid();
+            planes.push(SweepPlane { map, wp });
+        }
+        times.rasterise += start.elapsed();
+        (!planes.is_empty()).then_some(Sweep { frame, planes })
     }
 
     /// The full-resolution Depth Map of one plane position.
@@ -583,10 +787,12 @@ impl<'a> Oracle<'a> {
             lmax,
             wp,
             n,
+            self.plane_rect(lmin, lmax, wp),
+            f64::NEG_INFINITY,
         );
         let (rmin, rmax) = self.plane_rect(lmin, lmax, wp);
         let mut level0 = rasterise(n, &occ);
-        let sliced = self.draw_slices(frame, solids, lmin, lmax, wp, n, &mut level0);
+        let sliced = self.draw_slices(frame, solids, (rmin, rmax), wp, n, &mut level0);
         let mut map = DepthMap::from_level0(rmin, rmax, n, level0);
         map.build_pyramid();
         times.rasterise += start.elapsed();
@@ -602,20 +808,20 @@ impl<'a> Oracle<'a> {
     }
 
     /// Draws the cuts of the eligible solids (`(size, index, w min, w max)`)
-    /// that straddle the plane at `wp` into the `n` x `n` level-0 map, at
-    /// Depth 0; returns how many solids were cut.
+    /// that straddle the plane at `wp` into the `n` x `n` level-0 map over
+    /// the plane rectangle `rect`, at Depth 0; returns how many solids were
+    /// cut.
     #[allow(clippy::too_many_arguments)]
     fn draw_slices(
         &self,
         frame: Frame,
         solids: &[(f64, usize, f64, f64)],
-        lmin: DVec3,
-        lmax: DVec3,
+        rect: (DVec2, DVec2),
         wp: f64,
         n: usize,
         level0: &mut [f64],
     ) -> usize {
-        let (rmin, rmax) = self.plane_rect(lmin, lmax, wp);
+        let (rmin, rmax) = rect;
         let pixel = (rmax - rmin) / n as f64;
         if !(pixel.x > 0.0 && pixel.y > 0.0) {
             return 0;
@@ -663,8 +869,9 @@ impl<'a> Oracle<'a> {
     }
 
     /// The views of the `limit` largest occluders in front of the plane at
-    /// `wp` (clipped to `w <= wp`), in the pixel coordinates of an `n` x `n`
-    /// map over the plane rectangle.
+    /// `wp` (clipped to `w <= wp`) that reach beyond `w = after`, in the
+    /// pixel coordinates of an `n` x `n` map over the plane rectangle
+    /// `rect`.
     #[allow(clippy::too_many_arguments)]
     fn project_occluders(
         &self,
@@ -676,19 +883,21 @@ impl<'a> Oracle<'a> {
         lmax: DVec3,
         wp: f64,
         n: usize,
+        rect: (DVec2, DVec2),
+        after: f64,
     ) -> Vec<ProjectedOccluder> {
-        let (rmin, rmax) = self.plane_rect(lmin, lmax, wp);
+        let (rmin, rmax) = rect;
         let pixel = (rmax - rmin) / n as f64;
         if !(pixel.x > 0.0 && pixel.y > 0.0) {
             return Vec::new();
         }
         let mut out = Vec::new();
         let mut points = Vec::new();
-        for &(_, i, omin, _) in ranked {
+        for &(_, i, omin, omax) in ranked {
             if out.len() >= limit {
                 break;
             }
-            if omin.z >= wp {
+            if omin.z >= wp || omax.z <= after {
                 continue;
             }
             let o = &self.occluders[i];
@@ -742,6 +951,19 @@ impl<'a> Oracle<'a> {
     }
 }
 
+/// A placed plane: its map, its position, its report.
+type PlaneMap = (DepthMap, f64, PlaneReport);
+
+/// What one face's plane placement found, for its sweep: the occluders in
+/// front of the face (`(size, index, box min, box max)`, frame
+/// coordinates, largest first), the solids to slice (`(size, index, w
+/// min, w max)`) and the cell's corners.
+struct FaceSetup {
+    ranked: Vec<(f64, usize, DVec3, DVec3)>,
+    solids: Vec<(f64, usize, f64, f64)>,
+    eyes: Vec<DVec3>,
+}
+
 /// Whether the box `[qmin, qmax]` (frame coordinates) is proved hidden on
 /// the plane `w = wp` whose Depth Map is `map`, from the cell `[lmin, lmax]`.
 #[allow(clippy::too_many_arguments)]
@@ -761,8 +983,20 @@ fn box_hidden(
     // cannot then order the two hits the other way.
     let depth = qmin.z - wp - slack;
     let (lo, hi) = occludee_rect(lmin, lmax, qmin, qmax, wp);
-    if map.hides(lo, hi, depth) {
-        return true;
+    let failed = match map.test_rect(lo, hi, depth) {
+        Ok(()) => return true,
+        Err(pixel) => pixel,
+    };
+    // Behind the plane, the exact Projection is a convex polygon, often
+    // much less than its rectangle (a cell seeing the box at a slant);
+    // tried unless the pixel that failed the rectangle is one of its own.
+    if qmin.z >= wp {
+        let poly = occludee_polygon(lmin, lmax, qmin, qmax, wp);
+        if failed.is_none_or(|p| !map.pixel_meets_polygon(p, &poly))
+            && map.hides_polygon(&poly, depth)
+        {
+            return true;
+        }
     }
     if qmax.z <= wp
         && let Some((lo, hi)) = improved_rect(lmin, lmax, qmin, qmax, wp)
@@ -772,18 +1006,17 @@ fn box_hidden(
     false
 }
 
-/// Whether every piece of the box `[qmin, qmax]` (world, disjoint from the
-/// cell) is hidden on some plane it lies in front of. The box is cut along
+/// Whether `hides` proves every piece of the box `[qmin, qmax]` (world,
+/// disjoint from the cell) hidden (on some plane it lies in front of). The box is cut along
 /// each axis at the cell's slab (a hair outside it, so that each outer
 /// piece lies strictly in front of that side's face and the middle piece
 /// stays strictly in front of the faces the whole box was in front of).
 fn pieces_hidden(
-    maps: &[(Frame, DepthMap, f64)],
+    hides: &dyn Fn(DVec3, DVec3) -> bool,
     cmin: DVec3,
     cmax: DVec3,
     qmin: DVec3,
     qmax: DVec3,
-    slack: f64,
 ) -> bool {
     let hair = 1e-9
         * (cmax - cmin)
@@ -809,12 +1042,7 @@ fn pieces_hidden(
         for &(y0, y1) in &ys {
             for &(z0, z1) in &zs {
                 let (pmin, pmax) = (DVec3::new(x0, y0, z0), DVec3::new(x1, y1, z1));
-                let any = maps.iter().any(|(frame, map, wp)| {
-                    let (lmin, lmax) = frame.local_box(cmin, cmax);
-                    let (a, b) = frame.local_box(pmin, pmax);
-                    box_hidden(map, lmin, lmax, a, b, *wp, slack)
-                });
-                if !any {
+                if !hides(pmin, pmax) {
                     return false;
                 }
             }

@@ -154,6 +154,21 @@ impl DepthMap {
         draw_pixels(&mut self.levels[0], self.n, &px, depth)
     }
 
+    /// The rectangle the map covers, `(min, max)`.
+    pub fn rect(&self) -> (DVec2, DVec2) {
+        (self.min, self.max)
+    }
+
+    /// Pixels on a side.
+    pub fn resolution(&self) -> usize {
+        self.n
+    }
+
+    /// The full-resolution pixels (row `j` at `j * n..`; +inf where empty).
+    pub fn level0(&self) -> &[f64] {
+        &self.levels[0]
+    }
+
     /// Pixels holding some occluder.
     pub fn filled(&self) -> usize {
         self.levels[0].iter().filter(|d| d.is_finite()).count()
@@ -185,8 +200,14 @@ impl DepthMap {
     /// depth below `depth` (false when the rectangle leaves the map). Uses
     /// the pyramid from the top.
     pub fn hides(&self, lo: DVec2, hi: DVec2, depth: f64) -> bool {
+        self.test_rect(lo, hi, depth).is_ok()
+    }
+
+    /// [`DepthMap::hides`], saying on failure which level-0 pixel failed
+    /// (`None` when the rectangle leaves the map).
+    pub fn test_rect(&self, lo: DVec2, hi: DVec2, depth: f64) -> Result<(), Option<[i64; 2]>> {
         if lo.x < self.min.x || lo.y < self.min.y || hi.x > self.max.x || hi.y > self.max.y {
-            return false;
+            return Err(None);
         }
         let px = self.pixel();
         let to_pixel = |v: f64, min: f64, size: f64| ((v - min) / size).floor() as i64;
@@ -199,13 +220,53 @@ impl DepthMap {
         // not) clamp: those pixels are within the rectangle's touch anyway.
         let n = self.n as i64;
         let (i0, i1, j0, j1) = (i0.max(0), i1.min(n - 1), j0.max(0), j1.min(n - 1));
-        self.below(self.levels.len() - 1, 0, 0, [i0, i1, j0, j1], depth)
+        match self.below(self.levels.len() - 1, 0, 0, [i0, i1, j0, j1], depth) {
+            None => Ok(()),
+            Some(p) => Err(Some(p)),
+        }
     }
 
-    fn below(&self, level: usize, i: i64, j: i64, r: [i64; 4], depth: f64) -> bool {
-        let span = 1i64 << level;
-        let (x0, y0) = (i * span, j * span);
-        if x0 > r[1] || x0 + span - 1 < r[0] || y0 > r[3] || y0 + span - 1 < r[2] {
+    /// Whether the level-0 pixel `p`, grown by a pixel on every side, meets
+    /// the convex counter-clockwise polygon `poly` (plane coordinates):
+    /// then [`DepthMap::hides_polygon`] tests that pixel.
+    pub fn pixel_meets_polygon(&self, p: [i64; 2], poly: &[DVec2]) -> bool {
+        let px = self.pixel();
+        let pixels: Vec<DVec2> = poly.iter().map(|&q| (q - self.min) / px).collect();
+        let (x0, y0) = (p[0] as f64 - 1.0, p[1] as f64 - 1.0);
+        square_meets_convex(x0, y0, x0 + 3.0, y0 + 3.0, &pixels)
+    }
+
+    /// Whether every pixel that the convex counter-clockwise polygon `poly`
+    /// (plane coordinates) touches, grown by a pixel on every side as in
+    /// [`DepthMap::hides`], holds a depth below `depth` (false when the
+    /// polygon leaves the map or is degenerate).
+    pub fn hides_polygon(&self, poly: &[DVec2], depth: f64) -> bool {
+        if poly.len() < 3 {
+            return false;
+        }
+        let (lo, hi) = poly
+            .iter()
+            .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(a, b), &p| {
+                (a.min(p), b.max(p))
+            });
+        if !(lo.is_finite() && hi.is_finite())
+            || lo.x < self.min.x
+            || lo.y < self.min.y
+            || hi.x > self.max.x
+            || hi.y > self.max.y
+        {
+            return false;
+        }
+        let px = self.pixel();
+        let pixels: Vec<DVec2> = poly.iter().map(|&p| (p - self.min) / px).collect();
+        self.below_polygon(self.levels.len() - 1, 0, 0, &pixels, depth)
+    }
+
+    fn below_polygon(&self, level: usize, i: i64, j: i64, poly: &[DVec2], depth: f64) -> bool {
+        let span = (1i64 << level) as f64;
+        let (x0, y0) = (i as f64 * span - 1.0, j as f64 * span - 1.0);
+        let (x1, y1) = (x0 + span + 2.0, y0 + span + 2.0);
+        if !square_meets_convex(x0, y0, x1, y1, poly) {
             return true;
         }
         let size = (self.n >> level) as i64;
@@ -215,8 +276,57 @@ impl DepthMap {
         if level == 0 {
             return false;
         }
-        (0..2).all(|dj| (0..2).all(|di| self.below(level - 1, 2 * i + di, 2 * j + dj, r, depth)))
+        (0..2).all(|dj| {
+            (0..2).all(|di| self.below_polygon(level - 1, 2 * i + di, 2 * j + dj, poly, depth))
+        })
     }
+
+    /// `None` when every pixel of the range `r` under the node holds a
+    /// depth below `depth`, else a pixel that does not.
+    fn below(&self, level: usize, i: i64, j: i64, r: [i64; 4], depth: f64) -> Option<[i64; 2]> {
+        let span = 1i64 << level;
+        let (x0, y0) = (i * span, j * span);
+        if x0 > r[1] || x0 + span - 1 < r[0] || y0 > r[3] || y0 + span - 1 < r[2] {
+            return None;
+        }
+        let size = (self.n >> level) as i64;
+        if self.levels[level][(j * size + i) as usize] < depth {
+            return None;
+        }
+        if level == 0 {
+            return Some([i, j]);
+        }
+        (0..2)
+            .flat_map(|dj| (0..2).map(move |di| (di, dj)))
+            .find_map(|(di, dj)| self.below(level - 1, 2 * i + di, 2 * j + dj, r, depth))
+    }
+}
+
+/// Whether the square `[x0, x1] x [y0, y1]` meets the convex
+/// counter-clockwise polygon `poly` (separating axes: the square's, then
+/// the polygon's edge normals; touching counts as meeting).
+fn square_meets_convex(x0: f64, y0: f64, x1: f64, y1: f64, poly: &[DVec2]) -> bool {
+    let (lo, hi) = poly
+        .iter()
+        .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(a, b), &p| {
+            (a.min(p), b.max(p))
+        });
+    if hi.x < x0 || hi.y < y0 || lo.x > x1 || lo.y > y1 {
+        return false;
+    }
+    let corners = [
+        DVec2::new(x0, y0),
+        DVec2::new(x1, y0),
+        DVec2::new(x1, y1),
+        DVec2::new(x0, y1),
+    ];
+    for k in 0..poly.len() {
+        let (p, q) = (poly[k], poly[(k + 1) % poly.len()]);
+        if corners.iter().all(|&c| (q - p).perp_dot(c - p) < 0.0) {
+            return false;
+        }
+    }
+    true
 }
 
 #[cfg(test)]
@@ -251,5 +361,43 @@ mod tests {
         assert!(!m2.hides(DVec2::splat(2.5), DVec2::splat(4.5), 2.0));
         // Leaving the map: never hidden.
         assert!(!m.hides(DVec2::splat(-0.5), DVec2::splat(3.0), 2.0));
+    }
+
+    #[test]
+    fn a_slanted_polygon_is_tested_on_its_own_pixels_not_its_rectangle() {
+        // Covered: everything but the corner pixels (0, 7) and (7, 0).
+        let mut level0 = vec![1.0; 64];
+        level0[7 * 8] = f64::INFINITY;
+        level0[7] = f64::INFINITY;
+        let mut m = DepthMap::from_level0(DVec2::ZERO, DVec2::splat(8.0), 8, level0);
+        m.build_pyramid();
+        // A thin diagonal band from (1.5, 1.5) to (6.5, 6.5): its rectangle
+        // touches the empty corners, its pixels (grown by one) do not.
+        let band = vec![
+            DVec2::new(1.5, 1.0),
+            DVec2::new(6.5, 6.0),
+            DVec2::new(6.5, 6.5),
+            DVec2::new(1.0, 1.5),
+        ];
+        assert!(!m.hides(DVec2::splat(1.0), DVec2::splat(6.5), 2.0));
+        assert!(m.hides_polygon(&band, 2.0));
+        // In front of the occluders, or reaching an empty pixel: not hidden.
+        assert!(!m.hides_polygon(&band, 0.5));
+        let wide = vec![
+            DVec2::new(0.5, 6.5),
+            DVec2::new(1.0, 6.5),
+            DVec2::new(1.0, 7.0),
+        ];
+        assert!(!m.hides_polygon(&wide, 2.0));
+        // Degenerate or off the map: not hidden.
+        assert!(!m.hides_polygon(&band[..2], 2.0));
+        assert!(!m.hides_polygon(
+            &[
+                DVec2::new(-1.0, 1.0),
+                DVec2::new(3.0, 1.0),
+                DVec2::new(3.0, 3.0)
+            ],
+            2.0
+        ));
     }
 }

@@ -197,6 +197,29 @@ pub fn occludee_rect(
     (lo, hi)
 }
 
+/// The exact Projection of the box `[qmin, qmax]` lying behind the plane
+/// (`qmin.z >= wp`) seen from the cell `[cmin, cmax]` (in front of it): the
+/// points where segments from the cell to the box cross the plane. That
+/// is the plane's cut through the convex hull of the two boxes, whose
+/// corners lie on segments between a cell corner and a box corner (no
+/// other edge of the hull crosses the plane), so it is the convex hull of
+/// those 64 crossings; counter-clockwise, empty when degenerate. For one
+/// `w` of the cell's and one of the box's, the crossings are
+/// `(1 - t) c + t q` with `t` fixed: the corners of the rectangle
+/// `(1 - t) cell + t box`, so 16 points do (4 rectangles' corners).
+pub fn occludee_polygon(cmin: DVec3, cmax: DVec3, qmin: DVec3, qmax: DVec3, wp: f64) -> Vec<DVec2> {
+    let mut points = Vec::with_capacity(16);
+    for cw in [cmin.z, cmax.z] {
+        for qw in [qmin.z, qmax.z] {
+            let t = (wp - cw) / (qw - cw);
+            let lo = cmin.truncate() * (1.0 - t) + qmin.truncate() * t;
+            let hi = cmax.truncate() * (1.0 - t) + qmax.truncate() * t;
+            points.extend([lo, DVec2::new(hi.x, lo.y), hi, DVec2::new(lo.x, hi.y)]);
+        }
+    }
+    convex_hull(&mut points)
+}
+
 /// The improved Projection (sec. 4) of the box `[qmin, qmax]` lying between
 /// the cell `[cmin, cmax]` and the plane (`cmax.z < qmin.z`,
 /// `qmax.z <= wp`), as a rectangle `(lo, hi)` (possibly a segment or a
@@ -299,6 +322,65 @@ fn bound(slope: f64, rhs: f64, at_most: bool) -> (bool, f64, f64) {
         (true, f64::NEG_INFINITY, t)
     } else {
         (true, t, f64::INFINITY)
+    }
+}
+
+#[cfg(test)]
+mod polygon_tests {
+    use super::*;
+    use crate::geom::polygon::signed_area;
+    use rand::{RngExt, SeedableRng};
+    use rand_pcg::Pcg64;
+
+    /// The 16-point polygon is the hull of all 64 corner crossings, and
+    /// holds the crossings of random segments from the cell to the box.
+    #[test]
+    fn the_occludee_polygon_is_the_hull_of_the_corner_crossings() {
+        let mut rng = Pcg64::seed_from_u64(5);
+        for _ in 0..200 {
+            let r = |rng: &mut Pcg64, a: f64, b: f64| rng.random_range(a..b);
+            let cmin = DVec3::new(
+                r(&mut rng, -3.0, 0.0),
+                r(&mut rng, -3.0, 0.0),
+                r(&mut rng, -3.0, -1.0),
+            );
+            let cmax = cmin
+                + DVec3::new(
+                    r(&mut rng, 0.1, 3.0),
+                    r(&mut rng, 0.1, 3.0),
+                    r(&mut rng, 0.1, 1.0),
+                );
+            let wp = cmax.z + r(&mut rng, 0.1, 4.0);
+            let qmin = DVec3::new(
+                r(&mut rng, -9.0, 9.0),
+                r(&mut rng, -9.0, 9.0),
+                wp + r(&mut rng, 0.0, 4.0),
+            );
+            let qmax = qmin
+                + DVec3::new(
+                    r(&mut rng, 0.0, 3.0),
+                    r(&mut rng, 0.0, 3.0),
+                    r(&mut rng, 0.0, 3.0),
+                );
+            let poly = occludee_polygon(cmin, cmax, qmin, qmax, wp);
+            let mut all: Vec<DVec2> = corners(cmin, cmax)
+                .iter()
+                .flat_map(|&c| corners(qmin, qmax).map(|q| project(c, q, wp)))
+                .collect();
+            let hull = convex_hull(&mut all);
+            let (a, b) = (signed_area(&poly), signed_area(&hull));
+            assert!((a - b).abs() <= 1e-9 * b.abs().max(1.0), "{a} against {b}");
+            for _ in 0..50 {
+                let c = cmin + (cmax - cmin) * DVec3::new(rng.random(), rng.random(), rng.random());
+                let q = qmin + (qmax - qmin) * DVec3::new(rng.random(), rng.random(), rng.random());
+                let x = project(c, q, wp);
+                let inside = (0..poly.len()).all(|k| {
+                    let (p0, p1) = (poly[k], poly[(k + 1) % poly.len()]);
+                    (p1 - p0).perp_dot(x - p0) >= -1e-9
+                });
+                assert!(inside, "{x:?} outside {poly:?}");
+            }
+        }
     }
 }
 
