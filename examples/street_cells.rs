@@ -208,8 +208,9 @@ fn main() -> ExitCode {
     let triangles: usize = scene.objects().iter().map(|o| o.triangle_count()).sum();
     let mut rng = Pcg64::seed_from_u64(args.seed);
     let (mut done, mut tries) = (0, 0);
-    let (mut objects_culled, mut triangles_culled, mut truth, mut kept, mut seconds, mut ratios) =
-        (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut objects_culled, mut triangles_culled, mut truth, mut kept, mut seconds) =
+        (0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut ratios, mut proofs) = (0.0, 0.0);
     let kind = if args.rooms { "room" } else { "street" };
     while done < args.cells {
         tries += 1;
@@ -241,9 +242,12 @@ fn main() -> ExitCode {
         let oc = 1.0 - report.visible.count() as f64 / n;
         let tc = 1.0 - visible_triangles as f64 / triangles as f64;
         let ratio = report.visible.count() as f64 / seen.count().max(1) as f64;
+        // Of the objects no ray hit, the share the oracle proved hidden.
+        let missed = scene.objects().len() - seen.count();
+        let proved = (scene.objects().len() - report.visible.count()) as f64 / missed.max(1) as f64;
         let (lo, hi) = (cell.min, cell.max);
         println!(
-            "cell ({:.1}, {:.1}, {:.1})-({:.1}, {:.1}, {:.1}): {} objects kept ({:.1}% culled, {:.1}% of triangles), >= {} seen by rays, {ratio:.2}x, {:.1} ms",
+            "cell ({:.1}, {:.1}, {:.1})-({:.1}, {:.1}, {:.1}): {} objects kept ({:.1}% culled, {:.1}% of triangles), >= {} seen by rays, {ratio:.2}x, {:.0}% of the rest proved hidden, {:.1} ms",
             lo.x,
             lo.y,
             lo.z,
@@ -254,6 +258,7 @@ fn main() -> ExitCode {
             100.0 * oc,
             100.0 * tc,
             seen.count(),
+            100.0 * proved,
             1e3 * report.times.total().as_secs_f64()
         );
         if args.list {
@@ -272,11 +277,12 @@ fn main() -> ExitCode {
         kept += report.visible.count() as f64;
         seconds += report.times.total().as_secs_f64();
         ratios += ratio;
+        proofs += proved;
         done += 1;
     }
     let c = args.cells.max(1) as f64;
     println!(
-        "mean over {} {kind} cells of {} x {} x {} m: {:.1}% of objects and {:.1}% of triangles culled; {:.1} objects kept, >= {:.1} seen, {:.2}x; {:.1} ms per cell",
+        "mean over {} {kind} cells of {} x {} x {} m: {:.1}% of objects and {:.1}% of triangles culled; {:.1} objects kept, >= {:.1} seen, {:.2}x, {:.0}% of the rest proved hidden; {:.1} ms per cell",
         args.cells,
         args.size,
         args.size,
@@ -286,6 +292,7 @@ fn main() -> ExitCode {
         kept / c,
         truth / c,
         ratios / c,
+        100.0 * proofs / c,
         1e3 * seconds / c
     );
     ExitCode::SUCCESS

@@ -18,7 +18,8 @@ use vis5d::scene::procedural::{self, SceneKind};
 
 #[derive(Args, Debug)]
 pub struct SceneArgs {
-    /// What to generate: apartment, office, city, forest or machine.
+    /// What to generate: apartment, office, city, forest, machine or
+    /// thicket.
     kind: SceneKind,
     /// Where to write the OBJ file (written atomically).
     #[arg(short, long, value_name = "FILE.obj")]

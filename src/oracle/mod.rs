@@ -1,5 +1,5 @@
 //! The conservative oracle: extended projections (papers/001, Durand et
-//! al. 2000, sec. 2-4 and appendix A).
+//! al. 2000, sec. 2-5 and appendices A-B).
 //!
 //! For a 3D view cell (a box of viewpoints, all directions) [`Oracle::cell`]
 //! computes a set of objects that surely contains every object visible
@@ -28,7 +28,16 @@
 //!    pixel under this rectangle covered by occluders nearer than this
 //!    depth?". Object bounding boxes, in a hierarchy, are tested with their
 //!    Projection rectangle (and the improved Projection for boxes between
-//!    the cell and the plane) and their minimum depth.
+//!    the cell and the plane) and their minimum depth; a box behind the
+//!    plane whose rectangle fails is tried with its exact Projection, a
+//!    convex polygon (`occludee_polygon`).
+//! 5. **Occlusion sweep** (sec. 5, `oracle_sweep.rs`). Planes at the
+//!    largest axis-aligned patches in front of the face (`oracle_patches.rs`:
+//!    floors, slabs, walls, drawn whole with their holes) and spaced
+//!    geometrically away from it; each plane holds the previous one
+//!    reprojected (exactly, per pixel), the convex occluders between the
+//!    two, the cuts of solids and the patch in it. Objects the placed
+//!    planes cannot hide are tried on the sweep planes next to them.
 //!
 //! An object is hidden when its box is hidden on one plane, or when its
 //! box, cut into the pieces in front of each face, has every piece hidden
@@ -47,7 +56,8 @@
 //! the scene), `oracle_project.rs` (the six plane frames, Projections of
 //! occluders and occludees), `oracle_plane.rs` (Depth Maps, the CPU
 //! rasteriser, the max pyramid), `oracle_slice.rs` (slices of solids, sec.
-//! 3.3), `oracle_gpu.rs` with `oracle_gpu.wgsl` (the GPU rasteriser),
+//! 3.3), `oracle_patches.rs` (axis-aligned patches), `oracle_sweep.rs`
+//! (reprojection and the sweep), `oracle_gpu.rs` with `oracle_gpu.wgsl` (the GPU rasteriser),
 //! `oracle_raster.rs` (the GPU-or-CPU choice), `oracle_check.rs` (the
 //! cross-check).
 

@@ -28,6 +28,11 @@
 //! by this argument, of reprojections); a segment from the cell to X
 //! crosses `w = wa` in the window, so its part up to there meets one. This
 //! is appendix B's "the shadow of a subset of the umbra lies in the umbra".
+//!
+//! Where the work is done: each plane's convex occluders go through the
+//! oracle's [`super::Rasteriser`] (the GPU where there is one, a
+//! submission per plane); the reprojection, the patches and the cuts of
+//! solids are drawn on the CPU in both cases.
 
 use glam::{DVec2, DVec3};
 

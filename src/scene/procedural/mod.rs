@@ -1,6 +1,6 @@
 //! Procedural test scenes, generated from a seed, whose visibility is easy
 //! to reason about: sealed rooms, streets, a forest, a machine behind a
-//! grating. They stand in for the test scenes of papers/003 sec. 8 (a
+//! grating, a dense forest. They stand in for the test scenes of papers/003 sec. 8 (a
 //! 159-object two-room apartment, an 18-apartment block, a copy machine),
 //! which are not available.
 //!
@@ -19,6 +19,7 @@ mod forest;
 mod machine;
 mod office;
 pub mod shapes;
+mod thicket;
 
 use std::fmt;
 use std::path::Path;
@@ -46,16 +47,20 @@ pub enum SceneKind {
     /// A closed casing with a ventilation grating and many internal parts
     /// (the copy machine of papers/003 sec. 8).
     Machine,
+    /// A dense forest: trees 2.5 m apart with crowns of leaf triangles down
+    /// to half a metre, where only many leaves together hide a tree.
+    Thicket,
 }
 
 impl SceneKind {
     /// Every kind, in documentation order.
-    pub const ALL: [SceneKind; 5] = [
+    pub const ALL: [SceneKind; 6] = [
         SceneKind::Apartment,
         SceneKind::Office,
         SceneKind::City,
         SceneKind::Forest,
         SceneKind::Machine,
+        SceneKind::Thicket,
     ];
 
     /// The kind's name on the command line.
@@ -66,6 +71,7 @@ impl SceneKind {
             SceneKind::City => "city",
             SceneKind::Forest => "forest",
             SceneKind::Machine => "machine",
+            SceneKind::Thicket => "thicket",
         }
     }
 
@@ -84,7 +90,9 @@ impl fmt::Display for SceneKind {
 
 /// A scene kind name that is not one of [`SceneKind::ALL`].
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("unknown scene kind {0:?}: expected one of apartment, office, city, forest, machine")]
+#[error(
+    "unknown scene kind {0:?}: expected one of apartment, office, city, forest, machine, thicket"
+)]
 pub struct UnknownSceneKind(pub String);
 
 impl FromStr for SceneKind {
@@ -129,6 +137,7 @@ pub fn generate(kind: SceneKind, seed: u64, replicate: u32) -> Scene {
         SceneKind::City => city::generate(&mut rng),
         SceneKind::Forest => forest::generate(&mut rng),
         SceneKind::Machine => machine::generate(&mut rng),
+        SceneKind::Thicket => thicket::generate(&mut rng),
     };
     let copies = replicate.max(1);
     let offsets = copy_offsets(kind, model.bounds(), copies);
