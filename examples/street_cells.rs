@@ -36,7 +36,7 @@ use vis5d::random::{uniform_direction, uniform_point};
 use vis5d::scene::Scene;
 use vis5d::trace::{Ray, Tracer};
 
-const USAGE: &str = "usage: street_cells MODEL CELLS SIZE [--height H] [--rooms] [--rays N] [--seed S] [--gpu] [--list]\n  [--sweep-planes N] [--sweep-patches N]";
+const USAGE: &str = "usage: street_cells MODEL CELLS SIZE [--height H] [--rooms] [--rays N] [--seed S] [--gpu] [--list]\n  [--sweep-planes N] [--sweep-patches N] [--occludee-depth N]";
 
 /// The command line.
 struct Args {
@@ -95,6 +95,11 @@ fn parse() -> Result<Args, String> {
                 args.params.sweep_patches = value("--sweep-patches")?
                     .parse()
                     .map_err(|_| "--sweep-patches must be a count")?
+            }
+            "--occludee-depth" => {
+                args.params.occludee_depth = value("--occludee-depth")?
+                    .parse()
+                    .map_err(|_| "--occludee-depth must be a count")?
             }
             "--rooms" => args.rooms = true,
             "--gpu" => args.gpu = true,

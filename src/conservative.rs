@@ -229,6 +229,7 @@ impl BakeParams {
             format!("oracle_sweep_planes={}", oracle.sweep_planes),
             format!("oracle_sweep_patches={}", oracle.sweep_patches),
             format!("oracle_sweep_extension={}", oracle.sweep_extension),
+            format!("oracle_occludee_depth={}", oracle.occludee_depth),
             format!("oracle_max_occluders={}", oracle.max_occluders),
             format!("oracle_plane_candidates={}", oracle.plane_candidates),
             format!("oracle_placement_occluders={}", oracle.placement_occluders),

@@ -44,6 +44,12 @@ pub struct OracleFlags {
     /// 64].
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(0..=64))]
     pub sweep_patches: u8,
+    /// Occludees below object level: an object not proved hidden whole is
+    /// tried cluster by cluster, its triangles cut in halves this many
+    /// levels deep, and is hidden when every cluster is (1: whole objects
+    /// only) [1 to 16].
+    #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u8).range(1..=16))]
+    pub occludee_depth: u8,
     /// Rasterise the Depth Maps on the CPU even when a GPU adapter exists
     /// (the default uses the GPU through wgpu, and the CPU when there is
     /// none).
@@ -61,6 +67,7 @@ impl OracleFlags {
             planes_per_face: self.planes_per_face.into(),
             sweep_planes: self.sweep_planes.into(),
             sweep_patches: self.sweep_patches.into(),
+            occludee_depth: self.occludee_depth.into(),
             ..OracleParams::default()
         };
         p.validate().map_err(|e| match &e {
@@ -159,6 +166,7 @@ struct OracleJson<'a> {
     planes: Vec<PlaneJson>,
     sweep_planes: usize,
     sweep_hidden: usize,
+    cluster_hidden: usize,
     seconds: Seconds,
 }
 
@@ -220,6 +228,7 @@ pub fn run(args: &OracleArgs) -> Result<()> {
             .collect(),
         sweep_planes: report.sweep_planes,
         sweep_hidden: report.sweep_hidden,
+        cluster_hidden: report.cluster_hidden,
         seconds: Seconds {
             load,
             prepare,
@@ -268,6 +277,13 @@ pub fn run(args: &OracleArgs) -> Result<()> {
             out,
             "  occlusion sweep: {} planes, {} more objects hidden",
             json.sweep_planes, json.sweep_hidden
+        )?;
+    }
+    if json.cluster_hidden > 0 {
+        writeln!(
+            out,
+            "  occludee clusters: {} more objects hidden cluster by cluster",
+            json.cluster_hidden
         )?;
     }
     writeln!(

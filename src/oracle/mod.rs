@@ -62,6 +62,7 @@
 //! cross-check).
 
 mod oracle_check;
+mod oracle_clusters;
 #[cfg(feature = "gpu")]
 mod oracle_gpu;
 mod oracle_occluders;
@@ -126,6 +127,10 @@ pub struct OracleParams {
     /// How far each sweep plane's rectangle reaches beyond the cell's
     /// face, in multiples of its distance from the face.
     pub sweep_extension: f64,
+    /// Occludees below object level: an object not proved hidden whole is
+    /// tried cluster by cluster, its triangles cut in halves this many
+    /// levels deep (1: whole objects only; at most 16).
+    pub occludee_depth: usize,
 }
 
 impl Default for OracleParams {
@@ -141,6 +146,7 @@ impl Default for OracleParams {
             sweep_planes: 4,
             sweep_patches: 4,
             sweep_extension: 3.0,
+            occludee_depth: 6,
         }
     }
 }
@@ -190,6 +196,9 @@ impl OracleParams {
                 "finite and >= 0",
                 &self.sweep_extension,
             ));
+        }
+        if !(1..=16).contains(&self.occludee_depth) {
+            return Err(bad("occludee_depth", "in 1..=16", &self.occludee_depth));
         }
         for (name, n) in [
             ("plane_candidates", self.plane_candidates),
@@ -257,6 +266,8 @@ pub struct CellReport {
     pub sweep_planes: usize,
     /// Objects only the sweeps proved hidden.
     pub sweep_hidden: usize,
+    /// Objects proved hidden only cluster by cluster.
+    pub cluster_hidden: usize,
     /// Time by stage.
     pub times: CellTimes,
 }
@@ -268,6 +279,7 @@ pub struct Oracle<'a> {
     occluders: Vec<Occluder>,
     solids: Vec<SlicedSolid>,
     patches: Vec<Patch>,
+    clusters: Vec<Vec<oracle_clusters::Cluster>>,
     counts: OccluderCounts,
     hierarchy: BoxTree,
     params: OracleParams,
@@ -294,11 +306,13 @@ impl<'a> Oracle<'a> {
         } else {
             Vec::new()
         };
+        let clusters = oracle_clusters::build(scene, params.occludee_depth);
         Ok(Self {
             scene,
             occluders,
             solids,
             patches,
+            clusters,
             counts,
             hierarchy: BoxTree::new(&boxes),
             params,
@@ -367,6 +381,7 @@ impl<'a> Oracle<'a> {
                 planes: Vec::new(),
                 sweep_planes: 0,
                 sweep_hidden: 0,
+                cluster_hidden: 0,
                 times: CellTimes::default(),
             };
         }
@@ -426,6 +441,7 @@ impl<'a> Oracle<'a> {
         };
         let mut touching = 0;
         let mut sweep_hidden = 0;
+        let mut cluster_hidden = 0;
         for (i, o) in self.scene.objects().iter().enumerate() {
             if hidden.contains(i) {
                 continue;
@@ -449,6 +465,20 @@ impl<'a> Oracle<'a> {
             {
                 hidden.insert(i);
                 sweep_hidden += 1;
+            } else if let Some([a, b]) = self.clusters[i].first().and_then(|c| c.children) {
+                // The object's box failed: its clusters, from the halves.
+                let both = |x: DVec3, y: DVec3| on_maps(x, y) || on_sweeps(x, y);
+                let mut test = |x: DVec3, y: DVec3| {
+                    !(x.cmple(cmax).all() && y.cmpge(cmin).all())
+                        && pieces_hidden(&both, cmin, cmax, x, y)
+                };
+                let tree = &self.clusters[i];
+                if oracle_clusters::hidden_below(tree, a, &mut test)
+                    && oracle_clusters::hidden_below(tree, b, &mut test)
+                {
+                    hidden.insert(i);
+                    cluster_hidden += 1;
+                }
             }
         }
         times.test = start.elapsed();
@@ -461,6 +491,7 @@ impl<'a> Oracle<'a> {
             planes,
             sweep_planes: sweeps.iter().map(|s| s.planes.len()).sum(),
             sweep_hidden,
+            cluster_hidden,
             times,
         }
     }

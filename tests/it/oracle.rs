@@ -509,3 +509,35 @@ fn a_slab_with_a_hole_hides_what_is_under_it_but_not_under_the_hole() {
             .any(|h| h.object == 2)
     );
 }
+
+/// Occludees below object level (issue 13): one object made of two cubes,
+/// each behind its own wall, its box spanning the gap between the walls.
+/// Whole, it cannot be proved hidden; cluster by cluster it is, and rays
+/// agree. A box in the gap stays visible.
+#[test]
+fn an_object_hidden_in_parts_is_proved_hidden_cluster_by_cluster() {
+    let wall = |y0: f32, y1: f32| boxed(Vec3::new(2.0, y0, -3.0), Vec3::new(2.2, y1, 3.0));
+    let mut parts = boxed(Vec3::new(5.0, -2.0, -0.25), Vec3::new(5.5, -1.5, 0.25));
+    parts.extend(boxed(Vec3::new(5.0, 1.5, -0.25), Vec3::new(5.5, 2.0, 0.25)));
+    let scene = scene_of(vec![
+        wall(-3.0, -0.5),
+        wall(0.5, 3.0),
+        parts,
+        boxed(Vec3::new(5.0, -0.2, -0.2), Vec3::new(5.4, 0.2, 0.2)),
+    ]);
+    let cell = Aabb::new(Vec3::new(-1.0, -0.2, -0.2), Vec3::new(-0.5, 0.2, 0.2));
+    let whole = OracleParams {
+        occludee_depth: 1,
+        ..OracleParams::default()
+    };
+    let without = Oracle::new(&scene, whole, Rasteriser::cpu()).unwrap();
+    assert!(without.cell(&cell, None).visible.contains(2));
+    let with = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    let report = with.cell(&cell, None);
+    assert!(!report.visible.contains(2), "the two cubes");
+    assert!(report.visible.contains(3), "the box in the gap");
+    assert!(report.cluster_hidden >= 1);
+    let tracer = Tracer::new(&scene);
+    let mut rng = Pcg64::seed_from_u64(26);
+    assert!(violations(&with, &tracer, &cell, 100_000, &mut rng).is_empty());
+}
