@@ -77,7 +77,7 @@ pub use oracle_check::{CheckParams, CheckReport, LeafCheck, Suspect, Violation, 
 #[cfg(feature = "gpu")]
 pub use oracle_gpu::{GpuError, GpuRasteriser};
 pub use oracle_occluders::OccluderCounts;
-pub use oracle_plane::{ProjectedOccluder, cpu_rasterise};
+pub use oracle_plane::{MapJob, ProjectedOccluder, cpu_rasterise};
 pub use oracle_raster::Rasteriser;
 
 use std::time::{Duration, Instant};
@@ -356,19 +356,20 @@ impl<'a> Oracle<'a> {
     /// the objects proved hidden from a cell holding this one, are taken
     /// as hidden and skipped as occluders.
     pub fn cell(&self, cell: &Aabb, parent_hidden: Option<&ObjectSet>) -> CellReport {
-        self.cell_with(cell, parent_hidden, &mut |n, occ| {
-            self.rasteriser.rasterise(n, occ)
+        self.cell_with(cell, parent_hidden, &mut |jobs| {
+            self.rasteriser.rasterise_many(jobs)
         })
     }
 
     /// [`Oracle::cell`] with the Depth Maps made by `rasterise` instead
-    /// (tests compare rasterisers this way): it gets the resolution and
-    /// the occluders and returns the level-0 map (see [`cpu_rasterise`]).
+    /// (tests compare rasterisers this way): it gets all the cell's maps
+    /// at once, each as a resolution and its occluders, and returns their
+    /// level-0 maps in order (see [`cpu_rasterise`]).
     pub fn cell_with(
         &self,
         cell: &Aabb,
         parent_hidden: Option<&ObjectSet>,
-        rasterise: &mut dyn FnMut(usize, &[ProjectedOccluder]) -> Vec<f64>,
+        rasterise: &mut dyn FnMut(&[MapJob]) -> Vec<Vec<f64>>,
     ) -> CellReport {
         let objects = self.scene.objects().len();
         let (cmin, cmax) = (cell.min.as_dvec3(), cell.max.as_dvec3());
@@ -395,23 +396,69 @@ impl<'a> Oracle<'a> {
                 hidden_by_parent += 1;
             }
         }
-        let mut planes = Vec::new();
-        let mut maps: Vec<(Frame, DepthMap, f64)> = Vec::new();
-        let mut sweeps: Vec<Sweep> = Vec::new();
+        // Placement per face, then every map's occluders, rasterised in one
+        // batch (one GPU submission), then the maps finished on the CPU.
+        let mut faces: Vec<(Frame, Vec<f64>, FaceSetup, Vec<SweepStep>)> = Vec::new();
         for frame in Frame::ALL {
-            let Some((found, face)) =
-                self.plane(frame, cmin, cmax, parent_hidden, &mut times, rasterise)
+            let Some((chosen, face)) = self.plane(frame, cmin, cmax, parent_hidden, &mut times)
             else {
                 continue;
             };
-            for (map, wp, report) in found {
-                planes.push(report);
-                maps.push((frame, map, wp));
+            let steps = self.sweep_plan(frame, cmin, cmax, &face, &mut times);
+            faces.push((frame, chosen, face, steps));
+        }
+        let start = Instant::now();
+        let n = self.params.resolution;
+        let mut placed: Vec<Vec<ProjectedOccluder>> = Vec::new();
+        for (frame, chosen, face, _) in &faces {
+            let (lmin, lmax) = frame.local_box(cmin, cmax);
+            for &wp in chosen {
+                placed.push(self.project_occluders(
+                    *frame,
+                    &face.ranked,
+                    self.params.max_occluders,
+                    &face.eyes,
+                    lmin,
+                    lmax,
+                    wp,
+                    n,
+                    self.plane_rect(lmin, lmax, wp),
+                    f64::NEG_INFINITY,
+                ));
             }
-            if let Some(sweep) = self.sweep(frame, cmin, cmax, &face, &mut times, rasterise) {
+        }
+        let jobs: Vec<MapJob> = placed
+            .iter()
+            .map(|o| (n, o.as_slice()))
+            .chain(
+                faces
+                    .iter()
+                    .flat_map(|f| f.3.iter().map(|s| (n, s.occluders.as_slice()))),
+            )
+            .collect();
+        let mut level0s = rasterise(&jobs).into_iter();
+        let mut planes = Vec::new();
+        let mut maps: Vec<(Frame, DepthMap, f64)> = Vec::new();
+        let mut placed = placed.iter();
+        for (frame, chosen, face, _) in &faces {
+            let (lmin, lmax) = frame.local_box(cmin, cmax);
+            for &wp in chosen {
+                let occluders = placed.next().map_or(0, Vec::len);
+                let level0 = level0s.next().expect("one map per job");
+                let (map, report) =
+                    self.finish_placed(*frame, &face.solids, lmin, lmax, wp, occluders, level0);
+                planes.push(report);
+                maps.push((*frame, map, wp));
+            }
+        }
+        let mut sweeps: Vec<Sweep> = Vec::new();
+        for (frame, _, face, steps) in faces {
+            let level0: Vec<Vec<f64>> = level0s.by_ref().take(steps.len()).collect();
+            if let Some(sweep) = self.sweep_finish(frame, cmin, cmax, &face, steps, level0) {
                 sweeps.push(sweep);
             }
         }
+        times.rasterise += start.elapsed();
         // Occludee tests: whole boxes per plane, through the hierarchy.
         let start = Instant::now();
         for (k, (frame, map, wp)) in maps.iter().enumerate() {
@@ -505,8 +552,7 @@ impl<'a> Oracle<'a> {
         cmax: DVec3,
         parent_hidden: Option<&ObjectSet>,
         times: &mut CellTimes,
-        rasterise: &mut dyn FnMut(usize, &[ProjectedOccluder]) -> Vec<f64>,
-    ) -> Option<(Vec<PlaneMap>, FaceSetup)> {
+    ) -> Option<(Vec<f64>, FaceSetup)> {
         let start = Instant::now();
         let (lmin, lmax) = frame.local_box(cmin, cmax);
         let centre = 0.5 * (lmin + lmax);
@@ -659,16 +705,8 @@ impl<'a> Oracle<'a> {
             }
         }
         times.select += start.elapsed();
-        let found = chosen
-            .into_iter()
-            .map(|wp| {
-                self.full_map(
-                    frame, &ranked, &solids, &eyes, lmin, lmax, wp, times, rasterise,
-                )
-            })
-            .collect();
         Some((
-            found,
+            chosen,
             FaceSetup {
                 ranked,
                 solids,
@@ -677,23 +715,22 @@ impl<'a> Oracle<'a> {
         ))
     }
 
-    /// The occlusion sweep away from one face (see `oracle_sweep.rs`):
-    /// planes at the largest axis-aligned patches in front of the face and
-    /// spaced geometrically from the nearest occluder to the farthest, each
-    /// holding the previous one reprojected, the convex occluders between
-    /// the two, the cuts of solids and the patches in it. `None` when the
-    /// sweep is off or finds no plane.
-    fn sweep(
+    /// The occlusion sweep away from one face (see `oracle_sweep.rs`),
+    /// planned: planes at the largest axis-aligned patches in front of the
+    /// face and spaced geometrically from the nearest occluder to the
+    /// farthest, each with its rectangle and the convex occluders between
+    /// it and the previous plane, projected; [`Oracle::sweep_finish`] makes
+    /// the maps once these are rasterised. Empty when the sweep is off.
+    fn sweep_plan(
         &self,
         frame: Frame,
         cmin: DVec3,
         cmax: DVec3,
         face: &FaceSetup,
         times: &mut CellTimes,
-        rasterise: &mut dyn FnMut(usize, &[ProjectedOccluder]) -> Vec<f64>,
-    ) -> Option<Sweep> {
+    ) -> Vec<SweepStep> {
         if self.params.sweep_planes == 0 && self.params.sweep_patches == 0 {
-            return None;
+            return Vec::new();
         }
         let start = Instant::now();
         let (lmin, lmax) = frame.local_box(cmin, cmax);
@@ -745,10 +782,8 @@ impl<'a> Oracle<'a> {
         positions.retain(|p| p.1.is_some() || !patch_at.iter().any(|&w| close(w, p.0)));
         positions.sort_by(|a, b| a.0.total_cmp(&b.0));
         positions.dedup_by(|b, a| b.1.is_none() && close(a.0, b.0));
-        times.select += start.elapsed();
-        let start = Instant::now();
         let n = self.params.resolution;
-        let mut planes: Vec<SweepPlane> = Vec::with_capacity(positions.len());
+        let mut steps: Vec<SweepStep> = Vec::with_capacity(positions.len());
         for &(wp, patch) in &positions {
             // The face grown by the extension, and all of the patch drawn
             // here, and where the previous plane's coverage can land.
@@ -760,14 +795,14 @@ impl<'a> Oracle<'a> {
                     rect.1.max(self.patches[i].max),
                 );
             }
-            if let Some(prev) = planes.last() {
-                let (a, b) = oracle_sweep::image(prev.map.rect(), prev.wp, lmin, lmax, wp);
+            if let Some(prev) = steps.last() {
+                let (a, b) = oracle_sweep::image(prev.rect, prev.wp, lmin, lmax, wp);
                 if a.cmplt(b).all() {
                     rect = (rect.0.min(a), rect.1.max(b));
                 }
             }
-            let after = planes.last().map_or(f64::NEG_INFINITY, |p| p.wp);
-            let occ = self.project_occluders(
+            let after = steps.last().map_or(f64::NEG_INFINITY, |p| p.wp);
+            let occluders = self.project_occluders(
                 frame,
                 &face.ranked,
                 self.params.max_occluders,
@@ -779,13 +814,37 @@ impl<'a> Oracle<'a> {
                 rect,
                 after,
             );
-            let mut level0 = if occ.is_empty() {
-                vec![f64::INFINITY; n * n]
-            } else {
-                rasterise(n, &occ)
-            };
+            steps.push(SweepStep {
+                wp,
+                patch,
+                rect,
+                occluders,
+            });
+        }
+        times.select += start.elapsed();
+        steps
+    }
+
+    /// The sweep's maps from its plan and the rasterised occluders of its
+    /// planes (`level0`, one per step): the cuts of solids and the patch of
+    /// each plane, then the previous plane reprojected onto it. `None`
+    /// when there is no plane.
+    fn sweep_finish(
+        &self,
+        frame: Frame,
+        cmin: DVec3,
+        cmax: DVec3,
+        face: &FaceSetup,
+        steps: Vec<SweepStep>,
+        level0: Vec<Vec<f64>>,
+    ) -> Option<Sweep> {
+        let (lmin, lmax) = frame.local_box(cmin, cmax);
+        let n = self.params.resolution;
+        let mut planes: Vec<SweepPlane> = Vec::with_capacity(steps.len());
+        for (step, mut level0) in steps.into_iter().zip(level0) {
+            let (wp, rect) = (step.wp, step.rect);
             self.draw_slices(frame, &face.solids, rect, wp, n, &mut level0);
-            if let Some(i) = patch {
+            if let Some(i) = step.patch {
                 oracle_patches::draw_patch(&mut level0, n, rect.0, rect.1, &self.patches[i]);
             }
             if let Some(prev) = planes.last() {
@@ -799,53 +858,37 @@ impl<'a> Oracle<'a> {
             map.build_pyramid();
             planes.push(SweepPlane { map, wp });
         }
-        times.rasterise += start.elapsed();
         (!planes.is_empty()).then_some(Sweep { frame, planes })
     }
 
-    /// The full-resolution Depth Map of one plane position.
+    /// Finishes the full-resolution Depth Map of one placed plane from its
+    /// rasterised occluders (`occluders` of them): the cuts of solids, the
+    /// pyramid, the report.
     #[allow(clippy::too_many_arguments)]
-    fn full_map(
+    fn finish_placed(
         &self,
         frame: Frame,
-        ranked: &[(f64, usize, DVec3, DVec3)],
         solids: &[(f64, usize, f64, f64)],
-        eyes: &[DVec3],
         lmin: DVec3,
         lmax: DVec3,
         wp: f64,
-        times: &mut CellTimes,
-        rasterise: &mut dyn FnMut(usize, &[ProjectedOccluder]) -> Vec<f64>,
-    ) -> (DepthMap, f64, PlaneReport) {
-        let start = Instant::now();
+        occluders: usize,
+        mut level0: Vec<f64>,
+    ) -> (DepthMap, PlaneReport) {
         let n = self.params.resolution;
-        let occ = self.project_occluders(
-            frame,
-            ranked,
-            self.params.max_occluders,
-            eyes,
-            lmin,
-            lmax,
-            wp,
-            n,
-            self.plane_rect(lmin, lmax, wp),
-            f64::NEG_INFINITY,
-        );
         let (rmin, rmax) = self.plane_rect(lmin, lmax, wp);
-        let mut level0 = rasterise(n, &occ);
         let sliced = self.draw_slices(frame, solids, (rmin, rmax), wp, n, &mut level0);
         let mut map = DepthMap::from_level0(rmin, rmax, n, level0);
         map.build_pyramid();
-        times.rasterise += start.elapsed();
         let report = PlaneReport {
             face: frame.name(),
             position: frame.world(DVec3::new(0.0, 0.0, wp))[frame.axis],
-            occluders: occ.len(),
+            occluders,
             slices: sliced,
             filled: map.filled(),
             hidden: 0,
         };
-        (map, wp, report)
+        (map, report)
     }
 
     /// Draws the cuts of the eligible solids (`(size, index, w min, w max)`)
@@ -992,8 +1035,14 @@ impl<'a> Oracle<'a> {
     }
 }
 
-/// A placed plane: its map, its position, its report.
-type PlaneMap = (DepthMap, f64, PlaneReport);
+/// One plane of a planned sweep: its position, the patch lying in it, its
+/// rectangle and its convex occluders, projected.
+struct SweepStep {
+    wp: f64,
+    patch: Option<usize>,
+    rect: (DVec2, DVec2),
+    occluders: Vec<ProjectedOccluder>,
+}
 
 /// What one face's plane placement found, for its sweep: the occluders in
 /// front of the face (`(size, index, box min, box max)`, frame

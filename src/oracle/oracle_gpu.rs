@@ -46,7 +46,7 @@ use wgpu::util::DeviceExt;
 
 use crate::geom::polygon::{clip_half_plane, rectangle, signed_area};
 
-pub use super::oracle_plane::ProjectedOccluder;
+pub use super::oracle_plane::{MapJob, ProjectedOccluder};
 
 /// GPU failures: no adapter, device lost, validation error, readback
 /// failure.
@@ -319,6 +319,50 @@ impl GpuRasteriser {
         occluders: &[ProjectedOccluder],
         chunk_vertices: usize,
     ) -> Result<Vec<f64>, GpuError> {
+        let mut maps = self.rasterise_jobs(&[(n, occluders)], chunk_vertices)?;
+        Ok(maps.pop().expect("one map per job"))
+    }
+
+    /// Several maps at once, `(side, occluders)` each, as
+    /// [`Self::rasterise`] makes them, recorded into one command buffer
+    /// and read back after one submission (the per-map cost of a
+    /// submission and a blocking readback is paid once).
+    pub fn rasterise_many(&self, jobs: &[MapJob]) -> Result<Vec<Vec<f64>>, GpuError> {
+        self.rasterise_jobs(jobs, CHUNK_VERTICES)
+    }
+
+    fn rasterise_jobs(
+        &self,
+        jobs: &[MapJob],
+        chunk_vertices: usize,
+    ) -> Result<Vec<Vec<f64>>, GpuError> {
+        let mut work: Vec<Option<Vec<Chunk>>> = Vec::with_capacity(jobs.len());
+        for &(n, occluders) in jobs {
+            work.push(self.chunks_of(n, occluders, chunk_vertices)?);
+        }
+        if work.iter().all(Option::is_none) {
+            return Ok(jobs
+                .iter()
+                .map(|&(n, _)| vec![f64::INFINITY; n * n])
+                .collect());
+        }
+        self.check_health()?;
+        let scope = ErrorScopes::push(&self.device);
+        let result = self.draw_and_read(jobs, &work);
+        let scoped = scope.pop();
+        self.check_health()?;
+        scoped.map_err(GpuError::Gpu)?;
+        result
+    }
+
+    /// The render passes of one map, checked against the device's limits;
+    /// `None` when no occluder covers a pixel (the map is empty).
+    fn chunks_of(
+        &self,
+        n: usize,
+        occluders: &[ProjectedOccluder],
+        chunk_vertices: usize,
+    ) -> Result<Option<Vec<Chunk>>, GpuError> {
         if !n.is_power_of_two() || n > MAX_SIDE {
             return Err(GpuError::InvalidInput(format!(
                 "the map side must be a power of two from 1 to {MAX_SIDE}, not {n}"
@@ -347,7 +391,7 @@ impl GpuRasteriser {
 
         let prepared = prepare(n, occluders);
         if prepared.is_empty() {
-            return Ok(vec![f64::INFINITY; n * n]);
+            return Ok(None);
         }
         let batches = make_batches(n, &prepared);
         let chunks = build_vertices(n, &prepared, &batches, chunk_vertices);
@@ -364,14 +408,7 @@ impl GpuRasteriser {
                 ),
             });
         }
-
-        self.check_health()?;
-        let scope = ErrorScopes::push(&self.device);
-        let result = self.draw_and_read(n, &chunks);
-        let scoped = scope.pop();
-        self.check_health()?;
-        scoped.map_err(GpuError::Gpu)?;
-        result
+        Ok(Some(chunks))
     }
 
     /// Reports a lost device or errors wgpu raised outside any scope.
@@ -388,8 +425,81 @@ impl GpuRasteriser {
         Ok(())
     }
 
-    /// Records the render passes, submits them and reads the map back.
-    fn draw_and_read(&self, n: usize, chunks: &[Chunk]) -> Result<Vec<f64>, GpuError> {
+    /// Records the render passes of every map (`None`: empty, not drawn)
+    /// into one command buffer, submits it once and reads the maps back.
+    fn draw_and_read(
+        &self,
+        jobs: &[MapJob],
+        work: &[Option<Vec<Chunk>>],
+    ) -> Result<Vec<Vec<f64>>, GpuError> {
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("depth maps"),
+            });
+        let readbacks: Vec<Option<(wgpu::Buffer, u32)>> = jobs
+            .iter()
+            .zip(work)
+            .map(|(&(n, _), chunks)| {
+                chunks
+                    .as_ref()
+                    .map(|chunks| self.record(&mut encoder, n, chunks))
+            })
+            .collect();
+        self.queue.submit([encoder.finish()]);
+
+        let (sender, receiver) = mpsc::channel();
+        let mut waiting = 0;
+        for (buffer, _) in readbacks.iter().flatten() {
+            let sender = sender.clone();
+            buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+                let _ = sender.send(r);
+            });
+            waiting += 1;
+        }
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        for _ in 0..waiting {
+            receiver
+                .recv()
+                .map_err(|_| GpuError::Readback("the mapping was never answered".into()))?
+                .map_err(|e| GpuError::Readback(e.to_string()))?;
+        }
+        let mut maps = Vec::with_capacity(jobs.len());
+        for (&(n, _), readback) in jobs.iter().zip(&readbacks) {
+            let Some((buffer, row_bytes)) = readback else {
+                maps.push(vec![f64::INFINITY; n * n]);
+                continue;
+            };
+            let map = {
+                let data = buffer
+                    .get_mapped_range(..)
+                    .map_err(|e| GpuError::Readback(e.to_string()))?;
+                let mut map = Vec::with_capacity(n * n);
+                for row in data.chunks_exact(*row_bytes as usize) {
+                    map.extend(
+                        row[..4 * n]
+                            .chunks_exact(4)
+                            .map(|b| f64::from(f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))),
+                    );
+                }
+                map
+            };
+            buffer.unmap();
+            maps.push(map);
+        }
+        Ok(maps)
+    }
+
+    /// Records one map's render passes and its copy into a new readback
+    /// buffer; returns the buffer and its padded row length.
+    fn record(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        n: usize,
+        chunks: &[Chunk],
+    ) -> (wgpu::Buffer, u32) {
         let side = n as u32;
         let extent = wgpu::Extent3d {
             width: side,
@@ -438,11 +548,6 @@ impl GpuRasteriser {
             })
             .collect();
 
-        let mut encoder = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("depth map"),
-            });
         for (c, (chunk, buffer)) in chunks.iter().zip(&buffers).enumerate() {
             let first = c == 0;
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -526,35 +631,7 @@ impl GpuRasteriser {
             },
             extent,
         );
-        self.queue.submit([encoder.finish()]);
-
-        let (sender, receiver) = mpsc::channel();
-        readback.map_async(wgpu::MapMode::Read, .., move |r| {
-            let _ = sender.send(r);
-        });
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
-        receiver
-            .recv()
-            .map_err(|_| GpuError::Readback("the mapping was never answered".into()))?
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
-        let map = {
-            let data = readback
-                .get_mapped_range(..)
-                .map_err(|e| GpuError::Readback(e.to_string()))?;
-            let mut map = Vec::with_capacity(n * n);
-            for row in data.chunks_exact(row_bytes as usize) {
-                map.extend(
-                    row[..4 * n]
-                        .chunks_exact(4)
-                        .map(|b| f64::from(f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))),
-                );
-            }
-            map
-        };
-        readback.unmap();
-        Ok(map)
+        (readback, row_bytes)
     }
 }
 

@@ -618,3 +618,27 @@ fn a_device_the_caller_owns_gives_the_same_maps() {
     check_sound(n, &occluders, &map, &reference(n, &occluders));
     assert_eq!(map, own.rasterise(n, &occluders).unwrap());
 }
+
+/// Several maps in one submission are the maps one at a time, empty jobs
+/// included, in order.
+#[test]
+fn many_maps_in_one_submission_match_one_at_a_time() {
+    let Some(gpu) = gpu() else { return };
+    let mut rng = Pcg64::seed_from_u64(41);
+    let sets: Vec<(usize, Vec<ProjectedOccluder>)> = [16usize, 64, 32, 64]
+        .iter()
+        .enumerate()
+        .map(|(k, &n)| {
+            let count = if k == 2 { 0 } else { 20 };
+            (n, random_occluders(&mut rng, n, count))
+        })
+        .collect();
+    let jobs: Vec<MapJob> = sets.iter().map(|(n, o)| (*n, o.as_slice())).collect();
+    let many = gpu.rasterise_many(&jobs).unwrap();
+    assert_eq!(many.len(), jobs.len());
+    for ((n, occluders), map) in sets.iter().zip(&many) {
+        assert_eq!(map, &gpu.rasterise(*n, occluders).unwrap());
+    }
+    assert!(many[2].iter().all(|d| d.is_infinite()));
+    assert!(gpu.rasterise_many(&[]).unwrap().is_empty());
+}

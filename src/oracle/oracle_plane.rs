@@ -47,6 +47,9 @@ pub struct ProjectedOccluder {
     pub depth: f64,
 }
 
+/// One Depth Map to rasterise: its side in pixels and its occluders.
+pub type MapJob<'a> = (usize, &'a [ProjectedOccluder]);
+
 /// The CPU rasteriser: the `n` x `n` level-0 map (row `j` at `j * n..`)
 /// holding in each pixel the smallest Depth among the occluders whose
 /// Projection (intersection of views, computed exactly by clipping)

@@ -15,7 +15,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 #[cfg(feature = "gpu")]
 use super::oracle_gpu::GpuRasteriser;
-use super::oracle_plane::{ProjectedOccluder, cpu_rasterise};
+use super::oracle_plane::{MapJob, ProjectedOccluder, cpu_rasterise};
 
 /// The rasteriser of an [`Oracle`](super::Oracle)'s Depth Maps: the CPU
 /// reference, or the GPU with the CPU as a fallback per map.
@@ -109,6 +109,23 @@ impl Rasteriser {
             self.gpu_failures.load(Ordering::Relaxed),
             self.first_failure.get().map(String::as_str),
         )
+    }
+
+    /// Several level-0 maps, `(side, occluders)` each: on the GPU in one
+    /// submission (all redone on the CPU if it fails), else on the CPU.
+    pub fn rasterise_many(&self, jobs: &[MapJob]) -> Vec<Vec<f64>> {
+        #[cfg(feature = "gpu")]
+        if let Some(g) = &self.gpu {
+            match g.rasterise_many(jobs) {
+                Ok(maps) => return maps,
+                Err(e) => {
+                    self.gpu_failures
+                        .fetch_add(jobs.len() as u64, Ordering::Relaxed);
+                    let _ = self.first_failure.set(e.to_string());
+                }
+            }
+        }
+        jobs.iter().map(|&(n, o)| cpu_rasterise(n, o)).collect()
     }
 
     /// The `n` x `n` level-0 map of `occluders` (see [`cpu_rasterise`]).

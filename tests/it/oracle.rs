@@ -152,8 +152,8 @@ fn the_gpu_oracle_is_never_wrong_and_close_to_the_cpu() {
         let (mut cpu_hidden, mut gpu_hidden) = (0, 0);
         for (label, cell) in cells(&scene, &mut rng) {
             let cpu = oracle.cell(&cell, None);
-            let on_gpu = oracle.cell_with(&cell, None, &mut |n, occ| {
-                gpu.rasterise(n, occ).expect("the GPU rasterises")
+            let on_gpu = oracle.cell_with(&cell, None, &mut |jobs| {
+                gpu.rasterise_many(jobs).expect("the GPU rasterises")
             });
             assert!(
                 cpu.visible.is_subset(&on_gpu.visible),
