@@ -3,7 +3,10 @@
 //! reference and on the GPU where an adapter exists (Mesa's lavapipe on a
 //! machine without one), on 8 street cells of the committed city (4 x 4 x
 //! 1 m) and 8 room cells of the office (2 x 2 x 1 m). Throughput is cells per second. Before each
-//! scene the bench prints the objects each rasteriser hides.
+//! scene the bench prints the objects each rasteriser hides. At 256 the
+//! GPU is also timed map by map (`gpu-map-by-map`: a submission and a
+//! readback per map) against the default batch (all of a cell's maps in
+//! one submission).
 //!
 //! The `bake/` group times the conservative bake (`vis5d build
 //! --conservative`, `conservative::bake`) of the committed office and city
@@ -96,6 +99,29 @@ fn bench_scene(c: &mut Criterion, name: &str, cell_size: f32) {
                     }
                 })
             });
+            // The GPU without batching: one submission and readback per
+            // map, as before issue 13's batching.
+            #[cfg(feature = "gpu")]
+            if gpu
+                && resolution == 256
+                && let Ok(single) = vis5d::oracle::GpuRasteriser::new()
+            {
+                g.bench_with_input(
+                    BenchmarkId::new("gpu-map-by-map", resolution),
+                    &cells,
+                    |b, cells| {
+                        b.iter(|| {
+                            for cell in cells {
+                                oracle.cell_with(cell, None, &mut |jobs| {
+                                    jobs.iter()
+                                        .map(|&(n, o)| single.rasterise(n, o).expect("rasterises"))
+                                        .collect()
+                                });
+                            }
+                        })
+                    },
+                );
+            }
         }
     }
     g.finish();
@@ -119,8 +145,14 @@ fn bake(c: &mut Criterion) {
     for name in ["office", "city"] {
         let scene =
             vis5d::scene::load(root.join("scenes").join(format!("{name}.obj"))).expect("committed");
-        let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu())
-            .expect("valid parameters");
+        // The bake's defaults: no sweep (`vis5d build --conservative`).
+        let oracle_params = OracleParams {
+            sweep_planes: 0,
+            sweep_patches: 0,
+            ..OracleParams::default()
+        };
+        let oracle =
+            Oracle::new(&scene, oracle_params, Rasteriser::cpu()).expect("valid parameters");
         let params = vis5d::conservative::BakeParams {
             max_depth: 6,
             ..Default::default()

@@ -736,13 +736,16 @@ impl<'a> Oracle<'a> {
         let (lmin, lmax) = frame.local_box(cmin, cmax);
         let centre = 0.5 * (lmin + lmax);
         let sign = if frame.positive { 1.0 } else { -1.0 };
-        // Patch planes strictly in front of the face, largest solid angle
-        // first.
+        // Patch planes in front of the face by more than the tracer's
+        // rounding (a review's counterexample: a floor one f32 step above
+        // the face, where a ray from the face slants through the floor at
+        // a t that rounds below 0 and goes on), largest solid angle first.
+        let slack = self.slack(cmin, cmax);
         let mut at_patches: Vec<(f64, f64, usize)> = self
             .patches
             .iter()
             .enumerate()
-            .filter(|(_, p)| p.axis == frame.axis && sign * p.coord > lmax.z)
+            .filter(|(_, p)| p.axis == frame.axis && sign * p.coord > lmax.z + slack)
             .map(|(i, p)| {
                 let d = sign * p.coord - centre.z;
                 (p.area / (d * d), sign * p.coord, i)

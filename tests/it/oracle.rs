@@ -422,6 +422,35 @@ fn review_counterexamples_stay_fixed() {
             Aabb::new(Vec3::new(-10.0, -0.5, -0.5), Vec3::new(-9.0, 0.5, 0.5)),
             Ray::new(Vec3::new(-9.5, -0.3, -0.3), Vec3::X),
         ),
+        (
+            // A cell's top one f32 step below a floor patch (review of the
+            // sweep, stop 25): a ray from the top face slants up through
+            // the floor, whose hit t rounds below 0, and reaches the box.
+            "a patch one ulp above the face",
+            scene_of(vec![
+                vec![
+                    [
+                        Vec3::new(-50.0, -50.0, 1.0),
+                        Vec3::new(50.0, -50.0, 1.0),
+                        Vec3::new(50.0, 50.0, 1.0),
+                    ],
+                    [
+                        Vec3::new(-50.0, -50.0, 1.0),
+                        Vec3::new(50.0, 50.0, 1.0),
+                        Vec3::new(-50.0, 50.0, 1.0),
+                    ],
+                ],
+                boxed(Vec3::new(10.0, -1.0, 2.0), Vec3::new(12.0, 1.0, 4.0)),
+            ]),
+            Aabb::new(
+                Vec3::new(-1.0, -1.0, 0.0),
+                Vec3::new(1.0, 1.0, 0.999_999_94),
+            ),
+            Ray::new(
+                Vec3::new(-0.768_083_33, 0.801_176_3, 0.999_999_94),
+                Vec3::new(11.448_421, -1.627_095_9, 2.075_660_7),
+            ),
+        ),
     ];
     for (label, scene, cell, ray) in cases {
         let tracer = Tracer::new(&scene);
@@ -540,4 +569,32 @@ fn an_object_hidden_in_parts_is_proved_hidden_cluster_by_cluster() {
     let tracer = Tracer::new(&scene);
     let mut rng = Pcg64::seed_from_u64(26);
     assert!(violations(&with, &tracer, &cell, 100_000, &mut rng).is_empty());
+}
+
+/// The review's counterexample on a committed scene (stop 25): a cell whose
+/// top lies a denormal below the forest's ground, a tree seen through the
+/// ground plane's rounding. The witness ray must hit a kept object.
+#[test]
+fn a_cell_a_hair_below_the_ground_keeps_what_rays_from_it_hit() {
+    let scene = scene::load(committed("forest.obj")).expect("committed scene loads");
+    let tracer = Tracer::new(&scene);
+    let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    let cell = Aabb::new(
+        Vec3::new(34.845_783, 51.449_524, -0.260_757_27),
+        Vec3::new(35.349_827, 51.953_568, -1e-45),
+    );
+    let ray = Ray::new(
+        Vec3::new(35.349_827, 51.449_524, -1e-45),
+        Vec3::new(-23.951_918, -18.347_977, 8.327_698),
+    );
+    let report = oracle.cell(&cell, None);
+    if let Some(hit) = tracer.closest_hit(&ray) {
+        assert!(
+            report.visible.contains(hit.object as usize),
+            "hid {} which {ray:?} hits",
+            scene.objects()[hit.object as usize].name
+        );
+    }
+    let mut rng = Pcg64::seed_from_u64(27);
+    assert!(violations(&oracle, &tracer, &cell, 50_000, &mut rng).is_empty());
 }
