@@ -16,10 +16,14 @@ fn header(kind: SceneKind, seed: u64, replicate: u32, s: &scene::Scene) -> Vec<S
 }
 
 /// `scenes/<kind>.obj` is byte for byte `vis5d scene <kind> --seed 1`
-/// (scenes/README.md says so), and loads back to the generated scene.
+/// (scenes/README.md says so), and loads back to the generated scene. The
+/// thicket (110,604 triangles) is generated where needed, not committed.
 #[test]
 fn committed_scenes_are_reproducible() {
-    for kind in SceneKind::ALL {
+    for kind in SceneKind::ALL
+        .into_iter()
+        .filter(|&k| k != SceneKind::Thicket)
+    {
         let s = generate(kind, 1, 1);
         let mut bytes = Vec::new();
         write_obj(&s, &header(kind, 1, 1, &s), &mut bytes).unwrap();
