@@ -93,7 +93,7 @@ use oracle_patches::Patch;
 use oracle_plane::DepthMap;
 use oracle_project::{
     Frame, clip_above, clip_below, corners, improved_rect, occludee_polygon, occludee_rect,
-    occluder_views, project,
+    occluder_views, ordered_views, project,
 };
 use oracle_sweep::{Sweep, SweepPlane};
 
@@ -595,7 +595,12 @@ impl<'a> Oracle<'a> {
                     .iter()
                     .map(|&p| project(centre, frame.local(p), centre.z + 1.0)),
             );
-            let area = signed_area(&convex_hull(&mut scratch));
+            // A polygon's corners are in order: its area needs no hull.
+            let area = if self.occluders[i].solid {
+                signed_area(&convex_hull(&mut scratch))
+            } else {
+                signed_area(&scratch).abs()
+            };
             if area > 0.0 {
                 ranked.push((area, i, omin, omax));
             }
@@ -1005,7 +1010,11 @@ impl<'a> Oracle<'a> {
                 .map(|p| p.z)
                 .fold(f64::NEG_INFINITY, f64::max)
                 - wp;
-            let mut views = occluder_views(&clipped, eyes, wp);
+            // Unclipped polygons keep their corners in order.
+            let ordered = (!o.solid && clipped == points)
+                .then(|| ordered_views(&clipped, eyes, wp))
+                .flatten();
+            let mut views = ordered.unwrap_or_else(|| occluder_views(&clipped, eyes, wp));
             if views.iter().any(|v| v.len() < 3) {
                 continue;
             }

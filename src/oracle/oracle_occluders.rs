@@ -44,9 +44,8 @@ pub struct Occluder {
     pub min: DVec3,
     /// Its bounding box.
     pub max: DVec3,
-    /// Whether it is a closed convex solid (else a planar polygon): for
-    /// tests and debugging, nothing depends on it.
-    #[cfg_attr(not(test), allow(dead_code))]
+    /// Whether it is a closed convex solid (else a planar polygon whose
+    /// `points` are in order around it).
     pub solid: bool,
 }
 

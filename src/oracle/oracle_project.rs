@@ -164,6 +164,33 @@ pub fn occluder_views(points: &[DVec3], eyes: &[DVec3], wp: f64) -> Vec<Vec<DVec
         .collect()
 }
 
+/// [`occluder_views`] of a convex *planar* polygon whose `points` are in
+/// order around it: a central projection keeps a convex polygon in front
+/// of the eye convex and its corners in order, so no hull is needed (the
+/// order is only reversed where the view is clockwise). `None` when a view
+/// is not strictly convex (rounding, or a polygon only convex within the
+/// merge tolerance): the caller takes the hull then.
+pub fn ordered_views(points: &[DVec3], eyes: &[DVec3], wp: f64) -> Option<Vec<Vec<DVec2>>> {
+    eyes.iter()
+        .map(|&eye| {
+            let mut view: Vec<DVec2> = points.iter().map(|&p| project(eye, p, wp)).collect();
+            let k = view.len();
+            let turn = |i: usize| {
+                let (a, b, c) = (view[i], view[(i + 1) % k], view[(i + 2) % k]);
+                (b - a).perp_dot(c - b)
+            };
+            let first = turn(0);
+            if k < 3 || first == 0.0 || !(1..k).all(|i| turn(i) * first > 0.0) {
+                return None;
+            }
+            if first < 0.0 {
+                view.reverse();
+            }
+            Some(view)
+        })
+        .collect()
+}
+
 /// The intersection of views (the Projection of a convex occluder).
 pub fn intersect_views(views: &[Vec<DVec2>]) -> Vec<DVec2> {
     let mut out = views.first().cloned().unwrap_or_default();
@@ -328,6 +355,35 @@ fn bound(slope: f64, rhs: f64, at_most: bool) -> (bool, f64, f64) {
 #[cfg(test)]
 mod polygon_tests {
     use super::*;
+
+    /// Views of ordered convex polygons are the hulls of the projected
+    /// corners; a reflex corner falls back.
+    #[test]
+    fn ordered_views_match_the_hulls() {
+        let eyes = corners(DVec3::new(-1.0, -1.0, -2.0), DVec3::new(1.0, 1.0, -1.0));
+        let square = [
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::new(0.0, 2.0, 1.5),
+            DVec3::new(2.0, 2.0, 1.5),
+            DVec3::new(2.0, 0.0, 1.0),
+        ];
+        let ordered = ordered_views(&square, &eyes, 3.0).expect("convex");
+        let hulls = occluder_views(&square, &eyes, 3.0);
+        for (a, b) in ordered.iter().zip(&hulls) {
+            assert!(signed_area(a) > 0.0);
+            assert!((signed_area(a) - signed_area(b)).abs() < 1e-12);
+            for p in a {
+                assert!(b.iter().any(|q| (*p - *q).length() < 1e-12));
+            }
+        }
+        let dart = [
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::new(1.0, 0.5, 1.0),
+            DVec3::new(2.0, 0.0, 1.0),
+            DVec3::new(1.0, 2.0, 1.0),
+        ];
+        assert!(ordered_views(&dart, &eyes, 3.0).is_none());
+    }
     use crate::geom::polygon::signed_area;
     use rand::{RngExt, SeedableRng};
     use rand_pcg::Pcg64;
