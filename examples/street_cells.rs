@@ -216,6 +216,7 @@ fn main() -> ExitCode {
     let (mut objects_culled, mut triangles_culled, mut truth, mut kept, mut seconds) =
         (0.0, 0.0, 0.0, 0.0, 0.0);
     let (mut ratios, mut proofs) = (0.0, 0.0);
+    let mut stages = [0.0f64; 3];
     let kind = if args.rooms { "room" } else { "street" };
     while done < args.cells {
         tries += 1;
@@ -281,13 +282,16 @@ fn main() -> ExitCode {
         truth += seen.count() as f64;
         kept += report.visible.count() as f64;
         seconds += report.times.total().as_secs_f64();
+        stages[0] += report.times.select.as_secs_f64();
+        stages[1] += report.times.rasterise.as_secs_f64();
+        stages[2] += report.times.test.as_secs_f64();
         ratios += ratio;
         proofs += proved;
         done += 1;
     }
     let c = args.cells.max(1) as f64;
     println!(
-        "mean over {} {kind} cells of {} x {} x {} m: {:.1}% of objects and {:.1}% of triangles culled; {:.1} objects kept, >= {:.1} seen, {:.2}x, {:.0}% of the rest proved hidden; {:.1} ms per cell",
+        "mean over {} {kind} cells of {} x {} x {} m: {:.1}% of objects and {:.1}% of triangles culled; {:.1} objects kept, >= {:.1} seen, {:.2}x, {:.0}% of the rest proved hidden; {:.1} ms per cell (select {:.1}, rasterise {:.1}, test {:.1})",
         args.cells,
         args.size,
         args.size,
@@ -298,7 +302,10 @@ fn main() -> ExitCode {
         truth / c,
         ratios / c,
         100.0 * proofs / c,
-        1e3 * seconds / c
+        1e3 * seconds / c,
+        1e3 * stages[0] / c,
+        1e3 * stages[1] / c,
+        1e3 * stages[2] / c
     );
     ExitCode::SUCCESS
 }

@@ -679,7 +679,7 @@ impl<'a> Oracle<'a> {
             let mut hidden = ObjectSet::new(self.scene.objects().len());
             let test = |qmin: DVec3, qmax: DVec3| {
                 let (a, b) = frame.local_box(qmin, qmax);
-                box_hidden(&map, lmin, lmax, a, b, wp, slack)
+                box_hidden_with(&map, lmin, lmax, a, b, wp, slack, false)
             };
             self.hierarchy.mark_where(
                 &|b: &Aabb| test(b.min.as_dvec3(), b.max.as_dvec3()),
@@ -985,11 +985,30 @@ impl<'a> Oracle<'a> {
         }
         let mut out = Vec::new();
         let mut points = Vec::new();
-        for &(_, i, omin, omax) in ranked {
-            if out.len() >= limit {
+        // An occluder's Projection lies in its view from the cell's centre,
+        // whose area on this plane is its ranking area (on the plane one
+        // unit from the centre) times the squared distance: once that is
+        // under a pixel, it and every smaller one cover no whole pixel.
+        let distance = wp - 0.5 * (lmin.z + lmax.z);
+        let smallest = pixel.x * pixel.y / (distance * distance);
+        let centre = 0.5 * (lmin + lmax);
+        for &(area, i, omin, omax) in ranked {
+            if out.len() >= limit || area < smallest {
                 break;
             }
             if omin.z >= wp || omax.z <= after {
+                continue;
+            }
+            // Its Projection lies in its box's view from the centre: off
+            // the map, it is useless (checked before the 8 views).
+            let (vlo, vhi) = corners(omin, omax).iter().fold(
+                (DVec2::INFINITY, DVec2::NEG_INFINITY),
+                |(a, b), &q| {
+                    let x = project(centre, q, wp);
+                    (a.min(x), b.max(x))
+                },
+            );
+            if vhi.x <= rmin.x || vhi.y <= rmin.y || vlo.x >= rmax.x || vlo.y >= rmax.y {
                 continue;
             }
             let o = &self.occluders[i];
@@ -1078,6 +1097,22 @@ fn box_hidden(
     wp: f64,
     slack: f64,
 ) -> bool {
+    box_hidden_with(map, lmin, lmax, qmin, qmax, wp, slack, true)
+}
+
+/// [`box_hidden`], trying the exact polygon behind the plane only when
+/// `polygon` (plane placement scores positions without it).
+#[allow(clippy::too_many_arguments)]
+fn box_hidden_with(
+    map: &DepthMap,
+    lmin: DVec3,
+    lmax: DVec3,
+    qmin: DVec3,
+    qmax: DVec3,
+    wp: f64,
+    slack: f64,
+    polygon: bool,
+) -> bool {
     if qmin.z <= lmax.z {
         return false;
     }
@@ -1092,7 +1127,7 @@ fn box_hidden(
     // Behind the plane, the exact Projection is a convex polygon, often
     // much less than its rectangle (a cell seeing the box at a slant);
     // tried unless the pixel that failed the rectangle is one of its own.
-    if qmin.z >= wp {
+    if polygon && qmin.z >= wp {
         let poly = occludee_polygon(lmin, lmax, qmin, qmax, wp);
         if failed.is_none_or(|p| !map.pixel_meets_polygon(p, &poly))
             && map.hides_polygon(&poly, depth)

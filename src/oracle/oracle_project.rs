@@ -213,12 +213,25 @@ pub fn occludee_rect(
     qmax: DVec3,
     wp: f64,
 ) -> (DVec2, DVec2) {
+    // For one `w` of the cell's and one of the box's the crossing is
+    // `(1 - t) c + t q` with `t > 0` fixed, whose extremes over the two
+    // boxes' `u` and `v` take each box's low or high side by the signs of
+    // `1 - t` (negative beyond the box) and `t`: 4 rectangles, not 64
+    // corner pairs.
     let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
-    for c in corners(cmin, cmax) {
-        for q in corners(qmin, qmax) {
-            let x = project(c, q, wp);
-            lo = lo.min(x);
-            hi = hi.max(x);
+    let (c0, c1, q0, q1) = (
+        cmin.truncate(),
+        cmax.truncate(),
+        qmin.truncate(),
+        qmax.truncate(),
+    );
+    for cw in [cmin.z, cmax.z] {
+        for qw in [qmin.z, qmax.z] {
+            let t = (wp - cw) / (qw - cw);
+            let s = 1.0 - t;
+            let (a, b) = if s >= 0.0 { (c0, c1) } else { (c1, c0) };
+            lo = lo.min(a * s + q0 * t);
+            hi = hi.max(b * s + q1 * t);
         }
     }
     (lo, hi)
@@ -355,6 +368,50 @@ fn bound(slope: f64, rhs: f64, at_most: bool) -> (bool, f64, f64) {
 #[cfg(test)]
 mod polygon_tests {
     use super::*;
+
+    /// The 4-rectangle occludee rectangle is the 64-corner one, for boxes
+    /// behind, across and in front of the plane.
+    #[test]
+    fn the_occludee_rectangle_is_the_bound_of_the_corner_crossings() {
+        let mut rng = Pcg64::seed_from_u64(9);
+        for _ in 0..500 {
+            let r = |rng: &mut Pcg64, a: f64, b: f64| rng.random_range(a..b);
+            let cmin = DVec3::new(
+                r(&mut rng, -3.0, 0.0),
+                r(&mut rng, -3.0, 0.0),
+                r(&mut rng, -3.0, -1.0),
+            );
+            let cmax = cmin
+                + DVec3::new(
+                    r(&mut rng, 0.0, 3.0),
+                    r(&mut rng, 0.0, 3.0),
+                    r(&mut rng, 0.0, 1.0),
+                );
+            let qmin = DVec3::new(
+                r(&mut rng, -9.0, 9.0),
+                r(&mut rng, -9.0, 9.0),
+                cmax.z + r(&mut rng, 0.01, 4.0),
+            );
+            let qmax = qmin
+                + DVec3::new(
+                    r(&mut rng, 0.0, 3.0),
+                    r(&mut rng, 0.0, 3.0),
+                    r(&mut rng, 0.0, 3.0),
+                );
+            let wp = cmax.z + r(&mut rng, 0.01, 8.0);
+            let (lo, hi) = occludee_rect(cmin, cmax, qmin, qmax, wp);
+            let (mut a, mut b) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
+            for c in corners(cmin, cmax) {
+                for q in corners(qmin, qmax) {
+                    let x = project(c, q, wp);
+                    a = a.min(x);
+                    b = b.max(x);
+                }
+            }
+            assert!((lo - a).abs().max_element() <= 1e-9 * (1.0 + a.abs().max_element()));
+            assert!((hi - b).abs().max_element() <= 1e-9 * (1.0 + b.abs().max_element()));
+        }
+    }
 
     /// Views of ordered convex polygons are the hulls of the projected
     /// corners; a reflex corner falls back.
