@@ -369,36 +369,26 @@ fn bound(slope: f64, rhs: f64, at_most: bool) -> (bool, f64, f64) {
 mod polygon_tests {
     use super::*;
 
+    /// A random cell (its sides from `least` to 3, 1 deep) and a box
+    /// strictly in front of it (`w` from `least` to 4 beyond).
+    fn random_cell_and_box(rng: &mut Pcg64, least: f64) -> (DVec3, DVec3, DVec3, DVec3) {
+        let mut r = |a: f64, b: f64| rng.random_range(a..b);
+        let cmin = DVec3::new(r(-3.0, 0.0), r(-3.0, 0.0), r(-3.0, -1.0));
+        let cmax = cmin + DVec3::new(r(least, 3.0), r(least, 3.0), r(least, 1.0));
+        let qmin = DVec3::new(r(-9.0, 9.0), r(-9.0, 9.0), cmax.z + r(least, 4.0));
+        let qmax = qmin + DVec3::new(r(0.0, 3.0), r(0.0, 3.0), r(0.0, 3.0));
+        (cmin, cmax, qmin, qmax)
+    }
+
     /// The 4-rectangle occludee rectangle is the 64-corner one, for boxes
     /// behind, across and in front of the plane.
     #[test]
     fn the_occludee_rectangle_is_the_bound_of_the_corner_crossings() {
         let mut rng = Pcg64::seed_from_u64(9);
         for _ in 0..500 {
-            let r = |rng: &mut Pcg64, a: f64, b: f64| rng.random_range(a..b);
-            let cmin = DVec3::new(
-                r(&mut rng, -3.0, 0.0),
-                r(&mut rng, -3.0, 0.0),
-                r(&mut rng, -3.0, -1.0),
-            );
-            let cmax = cmin
-                + DVec3::new(
-                    r(&mut rng, 0.0, 3.0),
-                    r(&mut rng, 0.0, 3.0),
-                    r(&mut rng, 0.0, 1.0),
-                );
-            let qmin = DVec3::new(
-                r(&mut rng, -9.0, 9.0),
-                r(&mut rng, -9.0, 9.0),
-                cmax.z + r(&mut rng, 0.01, 4.0),
-            );
-            let qmax = qmin
-                + DVec3::new(
-                    r(&mut rng, 0.0, 3.0),
-                    r(&mut rng, 0.0, 3.0),
-                    r(&mut rng, 0.0, 3.0),
-                );
-            let wp = cmax.z + r(&mut rng, 0.01, 8.0);
+            // Planes in front of the box, across it and behind it.
+            let (cmin, cmax, qmin, qmax) = random_cell_and_box(&mut rng, 0.01);
+            let wp = cmax.z + rng.random_range(0.01..8.0);
             let (lo, hi) = occludee_rect(cmin, cmax, qmin, qmax, wp);
             let (mut a, mut b) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
             for c in corners(cmin, cmax) {
@@ -451,30 +441,9 @@ mod polygon_tests {
     fn the_occludee_polygon_is_the_hull_of_the_corner_crossings() {
         let mut rng = Pcg64::seed_from_u64(5);
         for _ in 0..200 {
-            let r = |rng: &mut Pcg64, a: f64, b: f64| rng.random_range(a..b);
-            let cmin = DVec3::new(
-                r(&mut rng, -3.0, 0.0),
-                r(&mut rng, -3.0, 0.0),
-                r(&mut rng, -3.0, -1.0),
-            );
-            let cmax = cmin
-                + DVec3::new(
-                    r(&mut rng, 0.1, 3.0),
-                    r(&mut rng, 0.1, 3.0),
-                    r(&mut rng, 0.1, 1.0),
-                );
-            let wp = cmax.z + r(&mut rng, 0.1, 4.0);
-            let qmin = DVec3::new(
-                r(&mut rng, -9.0, 9.0),
-                r(&mut rng, -9.0, 9.0),
-                wp + r(&mut rng, 0.0, 4.0),
-            );
-            let qmax = qmin
-                + DVec3::new(
-                    r(&mut rng, 0.0, 3.0),
-                    r(&mut rng, 0.0, 3.0),
-                    r(&mut rng, 0.0, 3.0),
-                );
+            // The box behind the plane.
+            let (cmin, cmax, qmin, qmax) = random_cell_and_box(&mut rng, 0.1);
+            let wp = cmax.z + rng.random_range(0.1..0.2) * (qmin.z - cmax.z);
             let poly = occludee_polygon(cmin, cmax, qmin, qmax, wp);
             let mut all: Vec<DVec2> = corners(cmin, cmax)
                 .iter()

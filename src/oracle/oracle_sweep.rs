@@ -174,27 +174,19 @@ pub fn reproject(
     let (amin, amax) = from.rect();
     let na = from.resolution();
     let src = from.level0();
-    let cw = (lmin.z, lmax.z);
-    let wu = windows(
-        (lmin.x, lmax.x),
-        cw,
-        wa,
-        wb,
-        (amin.x, amax.x),
-        na,
-        (rmin.x, rmax.x),
-        n,
-    );
-    let wv = windows(
-        (lmin.y, lmax.y),
-        cw,
-        wa,
-        wb,
-        (amin.y, amax.y),
-        na,
-        (rmin.y, rmax.y),
-        n,
-    );
+    let along = |k: usize| {
+        windows(
+            (lmin[k], lmax[k]),
+            (lmin.z, lmax.z),
+            wa,
+            wb,
+            (amin[k], amax[k]),
+            na,
+            (rmin[k], rmax[k]),
+            n,
+        )
+    };
+    let (wu, wv) = (along(0), along(1));
     if wu.iter().all(Option::is_none) || wv.iter().all(Option::is_none) {
         return out;
     }

@@ -8,10 +8,8 @@ use glam::Vec3;
 use rand::RngExt;
 use rand_pcg::Pcg64;
 
-use crate::random::uniform_direction;
-
 use super::Model;
-use super::shapes::{push_box, push_cylinder, push_ellipsoid};
+use super::shapes::{push_box, push_cylinder, push_ellipsoid, push_leaves};
 
 const TREES: usize = 30;
 const SIZE: f32 = 60.0;
@@ -52,20 +50,7 @@ pub(super) fn generate(rng: &mut Pcg64) -> Model {
         );
         let centre = p + Vec3::Z * (height + crown.z * 0.5);
         let leaves = m.object(format!("tree_{i}/leaves"));
-        while leaves.len() < LEAVES {
-            let q = Vec3::new(
-                rng.random_range(-1.0..1.0f32),
-                rng.random_range(-1.0..1.0f32),
-                rng.random_range(-1.0..1.0f32),
-            );
-            if q.length_squared() > 1.0 {
-                continue;
-            }
-            let c = centre + q * crown;
-            let (a, b) = (uniform_direction(rng), uniform_direction(rng));
-            let s = rng.random_range(0.15..0.35f32);
-            leaves.push([c, c + a * s, c + b * s]);
-        }
+        push_leaves(leaves, rng, centre, crown, LEAVES, 0.15..0.35);
     }
     for k in 0..6 {
         let c = Vec3::new(

@@ -105,6 +105,40 @@ pub fn push_ellipsoid(
     }
 }
 
+/// Appends `count` leaves to `tris`: triangles of two random sides of
+/// length in `size`, at random directions from a corner drawn uniformly in
+/// the ellipsoid of `centre` and semi-axes `half` (the crowns of the
+/// forests; the draws are made in a fixed order, so a seed gives the same
+/// leaves).
+pub fn push_leaves<R: rand::Rng + ?Sized>(
+    tris: &mut Vec<Triangle>,
+    rng: &mut R,
+    centre: Vec3,
+    half: Vec3,
+    count: usize,
+    size: std::ops::Range<f32>,
+) {
+    use rand::RngExt;
+    let target = tris.len() + count;
+    while tris.len() < target {
+        let q = Vec3::new(
+            rng.random_range(-1.0..1.0f32),
+            rng.random_range(-1.0..1.0f32),
+            rng.random_range(-1.0..1.0f32),
+        );
+        if q.length_squared() > 1.0 {
+            continue;
+        }
+        let c = centre + q * half;
+        let (a, b) = (
+            crate::random::uniform_direction(rng),
+            crate::random::uniform_direction(rng),
+        );
+        let s = rng.random_range(size.clone());
+        tris.push([c, c + a * s, c + b * s]);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -9,10 +9,8 @@ use glam::Vec3;
 use rand::RngExt;
 use rand_pcg::Pcg64;
 
-use crate::random::uniform_direction;
-
 use super::Model;
-use super::shapes::{push_box, push_cylinder};
+use super::shapes::{push_box, push_cylinder, push_leaves};
 
 const SIDE: usize = 16;
 const STEP: f32 = 2.5;
@@ -47,20 +45,7 @@ pub(super) fn generate(rng: &mut Pcg64) -> Model {
             let centre = p + Vec3::Z * (0.5 * (bottom + top));
             let half = Vec3::new(radius, radius, 0.5 * (top - bottom));
             let leaves = m.object(format!("tree_{i}_{j}/leaves"));
-            while leaves.len() < LEAVES {
-                let q = Vec3::new(
-                    rng.random_range(-1.0..1.0f32),
-                    rng.random_range(-1.0..1.0f32),
-                    rng.random_range(-1.0..1.0f32),
-                );
-                if q.length_squared() > 1.0 {
-                    continue;
-                }
-                let c = centre + q * half;
-                let (a, b) = (uniform_direction(rng), uniform_direction(rng));
-                let s = rng.random_range(0.4..0.6f32);
-                leaves.push([c, c + a * s, c + b * s]);
-            }
+            push_leaves(leaves, rng, centre, half, LEAVES, 0.4..0.6);
         }
     }
     m
