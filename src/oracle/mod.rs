@@ -855,12 +855,17 @@ impl<'a> Oracle<'a> {
             if let Some(i) = step.patch {
                 oracle_patches::draw_patch(&mut level0, n, rect.0, rect.1, &self.patches[i]);
             }
-            if let Some(prev) = planes.last() {
+            if let Some(prev) = planes.last().filter(|p| p.map.filled() > 0) {
                 let carried =
                     oracle_sweep::reproject(&prev.map, prev.wp, lmin, lmax, wp, rect.0, rect.1, n);
                 for (d, c) in level0.iter_mut().zip(carried) {
                     *d = d.min(c);
                 }
+            }
+            // A plane with nothing on it proves nothing: the next one
+            // reprojects the last plane that has something.
+            if level0.iter().all(|d| d.is_infinite()) {
+                continue;
             }
             let mut map = DepthMap::from_level0(rect.0, rect.1, n, level0);
             map.build_pyramid();

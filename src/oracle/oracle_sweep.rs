@@ -198,18 +198,28 @@ pub fn reproject(
     // Rows of the source, maxima over each target column's window, stored
     // column by column (`cols[i * na + r]`) for the second pass.
     let mut cols = vec![f64::INFINITY; na * n];
+    let mut finite = vec![false; n];
     let mut queue = Vec::with_capacity(na.max(n));
     for r in r0..=r1 {
         let row = &src[r * na..(r + 1) * na];
         if row.iter().all(|d| d.is_infinite()) {
             continue;
         }
-        sliding_max(|p| row[p], &wu, &mut queue, |i, v| cols[i * na + r] = v);
+        sliding_max(
+            |p| row[p],
+            &wu,
+            &mut queue,
+            |i, v| {
+                cols[i * na + r] = v;
+                finite[i] |= v.is_finite();
+            },
+        );
     }
-    // Then per target column, maxima over each target row's window.
+    // Then per target column, maxima over each target row's window
+    // (columns with nothing stay empty).
     let shift = wa - wb;
     for i in 0..n {
-        if wu[i].is_none() {
+        if !finite[i] {
             continue;
         }
         let col = &cols[i * na..(i + 1) * na];
