@@ -36,7 +36,7 @@ use vis5d::random::{uniform_direction, uniform_point};
 use vis5d::scene::Scene;
 use vis5d::trace::{Ray, Tracer};
 
-const USAGE: &str = "usage: street_cells MODEL CELLS SIZE [--height H] [--rooms] [--rays N] [--seed S] [--gpu] [--list]\n  [--sweep-planes N] [--sweep-patches N] [--occludee-depth N]";
+const USAGE: &str = "usage: street_cells MODEL CELLS SIZE [--height H] [--rooms] [--rays N] [--seed S] [--gpu] [--list]\n  [--sweep-planes N] [--sweep-patches N] [--sweep-extension X]\n  [--occludee-depth N]";
 
 /// The command line.
 struct Args {
@@ -95,6 +95,11 @@ fn parse() -> Result<Args, String> {
                 args.params.sweep_patches = value("--sweep-patches")?
                     .parse()
                     .map_err(|_| "--sweep-patches must be a count")?
+            }
+            "--sweep-extension" => {
+                args.params.sweep_extension = value("--sweep-extension")?
+                    .parse()
+                    .map_err(|_| "--sweep-extension must be a number")?
             }
             "--occludee-depth" => {
                 args.params.occludee_depth = value("--occludee-depth")?

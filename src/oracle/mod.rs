@@ -145,7 +145,7 @@ impl Default for OracleParams {
             planes_per_face: 2,
             sweep_planes: 4,
             sweep_patches: 4,
-            sweep_extension: 3.0,
+            sweep_extension: 1.5,
             occludee_depth: 6,
         }
     }
