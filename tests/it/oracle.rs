@@ -546,8 +546,10 @@ fn a_slab_with_a_hole_hides_what_is_under_it_but_not_under_the_hole() {
 #[test]
 fn an_object_hidden_in_parts_is_proved_hidden_cluster_by_cluster() {
     let wall = |y0: f32, y1: f32| boxed(Vec3::new(2.0, y0, -3.0), Vec3::new(2.2, y1, 3.0));
-    let mut parts = boxed(Vec3::new(5.0, -2.0, -0.25), Vec3::new(5.5, -1.5, 0.25));
-    parts.extend(boxed(Vec3::new(5.0, 1.5, -0.25), Vec3::new(5.5, 2.0, 0.25)));
+    // Each cube's Projection on the walls stays 0.25 m (several pixels)
+    // clear of the gap.
+    let mut parts = boxed(Vec3::new(5.0, -2.5, -0.25), Vec3::new(5.5, -2.0, 0.25));
+    parts.extend(boxed(Vec3::new(5.0, 2.0, -0.25), Vec3::new(5.5, 2.5, 0.25)));
     let scene = scene_of(vec![
         wall(-3.0, -0.5),
         wall(0.5, 3.0),
