@@ -167,6 +167,11 @@ struct OracleJson<'a> {
     sweep_planes: usize,
     sweep_hidden: usize,
     cluster_hidden: usize,
+    /// Closed convex solids the cell reaches into by a whole slab (or
+    /// lies in).
+    inside_solids: usize,
+    /// The part of the cell the projections ran from (world coordinates).
+    projected_from: [[f64; 3]; 2],
     seconds: Seconds,
 }
 
@@ -229,6 +234,11 @@ pub fn run(args: &OracleArgs) -> Result<()> {
         sweep_planes: report.sweep_planes,
         sweep_hidden: report.sweep_hidden,
         cluster_hidden: report.cluster_hidden,
+        inside_solids: report.inside_solids,
+        projected_from: [
+            frame.to_world(report.projected_from.min).to_array(),
+            frame.to_world(report.projected_from.max).to_array(),
+        ],
         seconds: Seconds {
             load,
             prepare,
@@ -277,6 +287,14 @@ pub fn run(args: &OracleArgs) -> Result<()> {
             out,
             "  occlusion sweep: {} planes, {} more objects hidden",
             json.sweep_planes, json.sweep_hidden
+        )?;
+    }
+    if json.inside_solids > 0 {
+        let [a, b] = json.projected_from;
+        writeln!(
+            out,
+            "  inside solids: the cell reaches into {} closed solids; projected from {a:?} .. {b:?}, what meets those solids kept",
+            json.inside_solids
         )?;
     }
     if json.cluster_hidden > 0 {

@@ -65,6 +65,7 @@ mod oracle_check;
 mod oracle_clusters;
 #[cfg(feature = "gpu")]
 mod oracle_gpu;
+mod oracle_inside;
 mod oracle_occluders;
 mod oracle_patches;
 mod oracle_plane;
@@ -268,6 +269,13 @@ pub struct CellReport {
     pub sweep_hidden: usize,
     /// Objects proved hidden only cluster by cluster.
     pub cluster_hidden: usize,
+    /// Closed convex solids the cell reaches into by a whole slab (or lies
+    /// in): the projections ran from the rest of the cell, and what meets
+    /// their boxes is kept (`oracle_inside.rs`).
+    pub inside_solids: usize,
+    /// The cell the projections ran from (the cell itself, unless a solid
+    /// cut a slab off it).
+    pub projected_from: Aabb,
     /// Time by stage.
     pub times: CellTimes,
 }
@@ -383,6 +391,8 @@ impl<'a> Oracle<'a> {
                 sweep_planes: 0,
                 sweep_hidden: 0,
                 cluster_hidden: 0,
+                inside_solids: 0,
+                projected_from: *cell,
                 times: CellTimes::default(),
             };
         }
@@ -395,6 +405,41 @@ impl<'a> Oracle<'a> {
                 hidden.insert(i);
                 hidden_by_parent += 1;
             }
+        }
+        // The part of the cell inside closed convex solids sees only what
+        // lies within them: project from the rest, keep what meets them.
+        let start = Instant::now();
+        let parent_hid = |o: &Occluder| hidden.contains(o.object as usize);
+        let (cmin, cmax, inside, whole_inside) =
+            match oracle_inside::reduce(&self.occluders, cmin, cmax, slack, &parent_hid) {
+                oracle_inside::Reduced::Cell { min, max, solids } => (min, max, solids, false),
+                oracle_inside::Reduced::Inside(i) => (cmin, cmax, vec![i], true),
+            };
+        let mut keep = ObjectSet::new(objects);
+        for &i in &inside {
+            let s = &self.occluders[i];
+            for (j, o) in self.scene.objects().iter().enumerate() {
+                let (a, b) = (o.bounds.min.as_dvec3(), o.bounds.max.as_dvec3());
+                if a.cmple(s.max).all() && b.cmpge(s.min).all() && !hidden.contains(j) {
+                    keep.insert(j);
+                }
+            }
+        }
+        times.select += start.elapsed();
+        let projected_from = Aabb::new(cmin.as_vec3(), cmax.as_vec3());
+        if whole_inside {
+            return CellReport {
+                visible: keep,
+                hidden_by_parent,
+                touching: 0,
+                planes: Vec::new(),
+                sweep_planes: 0,
+                sweep_hidden: 0,
+                cluster_hidden: 0,
+                inside_solids: 1,
+                projected_from,
+                times,
+            };
         }
         // Placement per face, then every map's occluders, rasterised in one
         // batch (one GPU submission), then the maps finished on the CPU.
@@ -529,6 +574,7 @@ impl<'a> Oracle<'a> {
             }
         }
         times.test = start.elapsed();
+        hidden.subtract(&keep);
         let mut visible = ObjectSet::full(objects);
         visible.subtract(&hidden);
         CellReport {
@@ -539,6 +585,8 @@ impl<'a> Oracle<'a> {
             sweep_planes: sweeps.iter().map(|s| s.planes.len()).sum(),
             sweep_hidden,
             cluster_hidden,
+            inside_solids: inside.len(),
+            projected_from,
             times,
         }
     }
@@ -569,9 +617,19 @@ impl<'a> Oracle<'a> {
             if skip(o) {
                 continue;
             }
-            let (omin, omax) = frame.local_box(o.min, o.max);
-            if omin.z <= lmax.z {
+            let (mut omin, omax) = frame.local_box(o.min, o.max);
+            if omax.z <= lmax.z {
                 continue;
+            }
+            if omin.z <= lmax.z {
+                // Straddling the face's plane: its part in front of the
+                // face occludes (clipped there when projected). A convex
+                // solid does even when the cell reaches into it: a segment
+                // from a viewpoint inside it to a point beyond it leaves
+                // it through its surface, which the (two-sided) tracer
+                // hits; and what lies inside it is never behind its part
+                // in front of the face, so it is never hidden by it.
+                omin.z = lmax.z;
             }
             let e = omax - omin;
             let d = omin.z - centre.z;
@@ -587,16 +645,22 @@ impl<'a> Oracle<'a> {
         }
         let mut ranked: Vec<(f64, usize, DVec3, DVec3)> = Vec::with_capacity(front.len());
         let mut scratch = Vec::new();
+        let near = lmax.z + 1e-6 * (lmax.z - lmin.z).max(slack);
+        let mut local = Vec::new();
         for (_, i, omin, omax) in front {
+            local.clear();
+            local.extend(self.occluders[i].points.iter().map(|&p| frame.local(p)));
+            let straddles = local.iter().any(|p| p.z <= lmax.z);
+            if straddles {
+                match clip_above(&local, near) {
+                    Some(c) => local = c,
+                    None => continue,
+                }
+            }
             scratch.clear();
-            scratch.extend(
-                self.occluders[i]
-                    .points
-                    .iter()
-                    .map(|&p| project(centre, frame.local(p), centre.z + 1.0)),
-            );
+            scratch.extend(local.iter().map(|&p| project(centre, p, centre.z + 1.0)));
             // A polygon's corners are in order: its area needs no hull.
-            let area = if self.occluders[i].solid {
+            let area = if self.occluders[i].solid || straddles {
                 signed_area(&convex_hull(&mut scratch))
             } else {
                 signed_area(&scratch).abs()
@@ -1024,33 +1088,39 @@ impl<'a> Oracle<'a> {
             // almost on the face projects from the corners on the face to
             // near infinity, where clipping rounds away whole edges (a
             // review's counterexample). A convex part of a convex occluder
-            // is still one.
+            // is still one. A solid or wall the cell's face touches (or
+            // reaches into) still has views from the corners on the face
+            // reaching near infinity: then the part from a twentieth of the
+            // way to the plane onwards is tried, whose views stay bounded.
             let near = lmax.z + 1e-6 * (wp - lmin.z);
-            let Some(clipped) = clip_below(&points, wp).and_then(|p| clip_above(&p, near)) else {
+            let fallback = (lmax.z + 0.05 * (wp - lmax.z)).max(near);
+            let Some((views, depth)) = [near, fallback].into_iter().find_map(|near| {
+                let clipped = clip_below(&points, wp).and_then(|p| clip_above(&p, near))?;
+                let depth = clipped
+                    .iter()
+                    .map(|p| p.z)
+                    .fold(f64::NEG_INFINITY, f64::max)
+                    - wp;
+                // Unclipped polygons keep their corners in order.
+                let ordered = (!o.solid && clipped == points)
+                    .then(|| ordered_views(&clipped, eyes, wp))
+                    .flatten();
+                let views = ordered.unwrap_or_else(|| occluder_views(&clipped, eyes, wp));
+                if views.iter().any(|v| v.len() < 3) {
+                    return None;
+                }
+                // A safety net against the same: views reaching 1e8 pixels
+                // away are dropped.
+                let far = 1e8 * pixel.max_element();
+                let wild = views.iter().flatten().any(|p| {
+                    !(*p - rmin).abs().max_element().is_finite()
+                        || (*p - rmin).abs().max_element() >= far
+                });
+                (!wild).then_some((views, depth))
+            }) else {
                 continue;
             };
-            let depth = clipped
-                .iter()
-                .map(|p| p.z)
-                .fold(f64::NEG_INFINITY, f64::max)
-                - wp;
-            // Unclipped polygons keep their corners in order.
-            let ordered = (!o.solid && clipped == points)
-                .then(|| ordered_views(&clipped, eyes, wp))
-                .flatten();
-            let mut views = ordered.unwrap_or_else(|| occluder_views(&clipped, eyes, wp));
-            if views.iter().any(|v| v.len() < 3) {
-                continue;
-            }
-            // A safety net against the same: views reaching 1e8 pixels
-            // away are dropped.
-            let far = 1e8 * pixel.max_element();
-            if views.iter().flatten().any(|p| {
-                !(*p - rmin).abs().max_element().is_finite()
-                    || (*p - rmin).abs().max_element() >= far
-            }) {
-                continue;
-            }
+            let mut views = views;
             // Off the map entirely: useless.
             let (vlo, vhi) = views[0]
                 .iter()

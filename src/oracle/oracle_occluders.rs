@@ -47,6 +47,10 @@ pub struct Occluder {
     /// Whether it is a closed convex solid (else a planar polygon whose
     /// `points` are in order around it).
     pub solid: bool,
+    /// A solid's face planes `(n, d)`, `n` a unit outward normal: its
+    /// inside is where `n . p <= d` for every plane (within
+    /// [`Occluder::tolerance`]). Empty for a polygon.
+    pub planes: Vec<(DVec3, f64)>,
 }
 
 impl Occluder {
@@ -62,7 +66,15 @@ impl Occluder {
             min,
             max,
             solid,
+            planes: Vec::new(),
         }
+    }
+
+    /// How far a solid's vertices may lie outside its face planes (the
+    /// convexity test's tolerance): a point is surely inside the solid
+    /// when it is inside every plane by more than this.
+    pub fn tolerance(&self) -> f64 {
+        PLANAR_TOLERANCE * (self.max - self.min).length()
     }
 }
 
@@ -181,13 +193,15 @@ fn extract_object(triangles: &[[Vec3; 3]], object: u32, extracted: &mut Extracte
     // Convex solids, per edge-connected component.
     if manifold {
         for component in components(&mesh, &edges) {
-            if let Some(points) = convex_solid(&mesh, &component, &edges) {
+            if let Some((points, planes)) = convex_solid(&mesh, &component, &edges) {
                 for &t in &component {
                     used[t as usize] = true;
                 }
                 counts.solids += 1;
                 counts.fused_triangles += component.len();
-                out.push(Occluder::new(object, points, true));
+                let mut solid = Occluder::new(object, points, true);
+                solid.planes = planes;
+                out.push(solid);
             }
         }
     }
@@ -277,12 +291,14 @@ fn components(mesh: &Mesh, edges: &HashMap<(u32, u32), u32>) -> Vec<Vec<u32>> {
     out
 }
 
-/// The vertices of a component if it is a closed convex solid.
+/// The vertices of a component and its face planes (outward), if it is a
+/// closed convex solid.
+#[allow(clippy::type_complexity)]
 fn convex_solid(
     mesh: &Mesh,
     component: &[u32],
     edges: &HashMap<(u32, u32), u32>,
-) -> Option<Vec<DVec3>> {
+) -> Option<(Vec<DVec3>, Vec<(DVec3, f64)>)> {
     if component.len() < 4 {
         return None;
     }
@@ -311,6 +327,7 @@ fn convex_solid(
     // for all faces (outward or inward winding), and a real volume.
     let mut sign = 0.0;
     let mut volume = 0.0;
+    let mut planes = Vec::with_capacity(component.len());
     for &t in component {
         let [a, b, c] = mesh.triangles[t as usize].map(|i| mesh.vertices[i as usize]);
         let normal = (b - a).cross(c - a);
@@ -341,8 +358,11 @@ fn convex_solid(
         } else if sign != side {
             return None;
         }
+        // Outward: the vertices on the plane's lower side.
+        let outward = -side * n;
+        planes.push((outward, outward.dot(a)));
     }
-    (volume.abs() / 6.0 > 1e-9 * size * size * size).then_some(points)
+    (volume.abs() / 6.0 > 1e-9 * size * size * size).then_some((points, planes))
 }
 
 struct Polygon {

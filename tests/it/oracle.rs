@@ -600,3 +600,46 @@ fn a_cell_a_hair_below_the_ground_keeps_what_rays_from_it_hit() {
     let mut rng = Pcg64::seed_from_u64(27);
     assert!(violations(&oracle, &tracer, &cell, 50_000, &mut rng).is_empty());
 }
+
+/// A cell reaching into a building (a closed convex box) by a whole slab:
+/// the slab's viewpoints see only the building and what is inside it, so
+/// the projections run from the rest of the cell, and the building,
+/// touching that rest, still hides what is behind it. Checked with rays.
+#[test]
+fn a_cell_reaching_into_a_building_projects_from_the_part_outside() {
+    let scene = scene_of(vec![
+        // 0: the building, which the cell reaches into from x = 2 to 4.
+        boxed(Vec3::new(2.0, -10.0, -1.0), Vec3::new(10.0, 5.5, 10.0)),
+        // 1: a box inside the building: seen from the slab inside it.
+        boxed(Vec3::new(6.0, 1.0, 1.0), Vec3::new(7.0, 2.0, 2.0)),
+        // 2: behind the building.
+        boxed(Vec3::new(12.0, 1.0, 0.5), Vec3::new(13.0, 2.0, 1.5)),
+        // 3: a wall across the street at y = 6, and 4 behind it, hidden
+        // from the cell's part outside the building only.
+        boxed(Vec3::new(-1.0, 6.0, -1.0), Vec3::new(3.0, 6.2, 3.0)),
+        boxed(Vec3::new(1.0, 8.0, 0.5), Vec3::new(1.8, 8.5, 1.5)),
+        // 5: in the street, beside the cell.
+        boxed(Vec3::new(-3.0, 1.0, 0.0), Vec3::new(-2.5, 2.0, 1.0)),
+    ]);
+    let cell = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 4.0, 2.0));
+    let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    let report = oracle.cell(&cell, None);
+    assert_eq!(report.inside_solids, 1);
+    assert!(report.projected_from.max.x > 2.0 && report.projected_from.max.x < 2.01);
+    let visible: Vec<usize> = report.visible.iter().collect();
+    assert_eq!(visible, vec![0, 1, 3, 5], "{report:?}");
+    // The same as from the part outside alone, where the wall hides 4
+    // (from the cell's corners at x = 4, inside the building, a line
+    // passes its end).
+    let outside = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.9, 4.0, 2.0));
+    assert!(!oracle.cell(&outside, None).visible.contains(4));
+    let tracer = Tracer::new(&scene);
+    let mut rng = Pcg64::seed_from_u64(28);
+    let found = violations(&oracle, &tracer, &cell, 200_000, &mut rng);
+    assert!(found.is_empty(), "{found:?}");
+    // A cell wholly inside the building sees what is inside it only.
+    let within = Aabb::new(Vec3::new(3.0, 0.0, 0.0), Vec3::new(5.0, 2.0, 2.0));
+    let report = oracle.cell(&within, None);
+    assert_eq!(report.visible.iter().collect::<Vec<_>>(), vec![0, 1]);
+    assert!(violations(&oracle, &tracer, &within, 50_000, &mut rng).is_empty());
+}
