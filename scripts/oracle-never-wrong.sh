@@ -27,11 +27,11 @@ models=(scenes/*.obj
 status=0
 for model in "${models[@]}"; do
     [ -f "$model" ] || { echo "$model missing, skipped"; continue; }
-    name=$(basename "$model" .obj)
+    name=$(basename "$(dirname "$model")")/$(basename "$model" .obj)
     kinds=("--anywhere|1 --height 1" "--anywhere|4 --height 2" "--anywhere|0.05 --height 0.05" "--anywhere|30 --height 10")
     case "$name" in
-        city|san_francisco|land1_trees|forest) kinds+=("|6 --height 2") ;;
-        machine) ;;
+        */city|*/san_francisco|*/land1_trees|*/forest) kinds+=("|6 --height 2") ;;
+        */machine) ;;
         *) kinds+=("--rooms|3 --height 2") ;;
     esac
     for raster in cpu gpu; do
@@ -42,6 +42,8 @@ for model in "${models[@]}"; do
             # shellcheck disable=SC2086
             if line=$($bin "$model" "$cells" $size $flag $gpu --rays "$rays" 2>&1 | tail -1); then
                 echo "$name | $raster | ${flag:-street} $size | ${line#mean over }"
+            elif [[ "$line" == *"found no place"* ]]; then
+                echo "$name | $raster | ${flag:-street} $size | no such cell in this scene"
             else
                 echo "$name | $raster | ${flag:-street} $size | FAILED: $line"
                 status=1

@@ -6,10 +6,15 @@
 # kept, seen by 10^5 rays, their ratio, the share of the objects no ray hit
 # that the oracle proved hidden, ms per cell on the CPU).
 #
-#   scripts/oracle-tightness.sh [CELLS]
+#   scripts/oracle-tightness.sh [CELLS [SWEEP...]]
+#
+# SWEEP is "PLANES PATCHES" (default: "0 0" "4 4" "8 8").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cells=${1:-10}
+shift || true
+sweeps=("$@")
+[ ${#sweeps[@]} -gt 0 ] || sweeps=("0 0" "4 4" "8 8")
 cargo build --release --quiet --bin vis5d --example street_cells
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
@@ -31,7 +36,7 @@ runs=(
 for run in "${runs[@]}"; do
     IFS='|' read -r name model rest <<< "$run"
     [ -f "$model" ] || { echo "$name: $model missing, skipped"; continue; }
-    for sweep in "0 0" "4 4" "8 8"; do
+    for sweep in "${sweeps[@]}"; do
         set -- $sweep
         # shellcheck disable=SC2086
         line=$(target/release/examples/street_cells "$model" $rest --rays 100000 \

@@ -415,12 +415,31 @@ impl<'a> Oracle<'a> {
                 oracle_inside::Reduced::Cell { min, max, solids } => (min, max, solids, false),
                 oracle_inside::Reduced::Inside(i) => (cmin, cmax, vec![i], true),
             };
+        // Solids the cell reaches into or touches (within the tracer's
+        // rounding) are occluders from every face, clipped at each plane;
+        // from a viewpoint inside or on such a solid, a segment to a point
+        // inside it, or touching it, need not cross its surface. So what
+        // meets their boxes (within the rounding) is kept, as is what meets
+        // the solids cut off above.
+        let pad = DVec3::splat(slack);
+        let mut reached: Vec<usize> = inside.clone();
+        for (i, o) in self.occluders.iter().enumerate() {
+            if o.solid
+                && !hidden.contains(o.object as usize)
+                && (o.min - pad).cmple(cmax).all()
+                && (o.max + pad).cmpge(cmin).all()
+                && !reached.contains(&i)
+            {
+                reached.push(i);
+            }
+        }
         let mut keep = ObjectSet::new(objects);
-        for &i in &inside {
+        for &i in &reached {
             let s = &self.occluders[i];
+            let (smin, smax) = (s.min - pad, s.max + pad);
             for (j, o) in self.scene.objects().iter().enumerate() {
                 let (a, b) = (o.bounds.min.as_dvec3(), o.bounds.max.as_dvec3());
-                if a.cmple(s.max).all() && b.cmpge(s.min).all() && !hidden.contains(j) {
+                if a.cmple(smax).all() && b.cmpge(smin).all() && !hidden.contains(j) {
                     keep.insert(j);
                 }
             }
@@ -622,13 +641,19 @@ impl<'a> Oracle<'a> {
                 continue;
             }
             if omin.z <= lmax.z {
-                // Straddling the face's plane: its part in front of the
-                // face occludes (clipped there when projected). A convex
-                // solid does even when the cell reaches into it: a segment
-                // from a viewpoint inside it to a point beyond it leaves
-                // it through its surface, which the (two-sided) tracer
-                // hits; and what lies inside it is never behind its part
-                // in front of the face, so it is never hidden by it.
+                // A convex solid straddling the face's plane: its part in
+                // front of the face occludes (clipped there when
+                // projected), even when the cell reaches into it: a segment
+                // from a viewpoint inside it to a point beyond it leaves it
+                // through its surface, which the (two-sided) tracer hits
+                // (what lies inside it or touches it is kept: see
+                // `cell_with`). (Polygons
+                // straddling the plane are left out: there are many in
+                // meshes of small triangles, each costing its views on
+                // every map, for little.)
+                if !o.solid {
+                    continue;
+                }
                 omin.z = lmax.z;
             }
             let e = omax - omin;

@@ -111,6 +111,11 @@ pub fn corners(min: DVec3, max: DVec3) -> [DVec3; 8] {
     })
 }
 
+/// The most point pairs [`clip_below`] crosses with the plane (a box has
+/// 16 at most; a solid of thousands of points straddling a plane would
+/// make millions).
+pub const CLIP_PAIRS: usize = 4096;
+
 /// The point where the line from `eye` through `p` meets the plane
 /// `w = wp` (requires `p.z > eye.z`).
 pub fn project(eye: DVec3, p: DVec3, wp: f64) -> DVec2 {
@@ -121,7 +126,9 @@ pub fn project(eye: DVec3, p: DVec3, wp: f64) -> DVec2 {
 /// The part of a convex occluder (given by its points, in the frame) on the
 /// cell's side of the plane, `w <= wp`: its points there and the points
 /// where segments between its points cross the plane (enough for its
-/// convex hull). `None` when nothing is left.
+/// convex hull). `None` when nothing is left. A solid of many points whose
+/// crossing pairs would pass [`CLIP_PAIRS`] keeps only its points on that
+/// side: their hull is a smaller convex part of it, still an occluder.
 pub fn clip_below(points: &[DVec3], wp: f64) -> Option<Vec<DVec3>> {
     let below: Vec<DVec3> = points.iter().copied().filter(|p| p.z <= wp).collect();
     if below.len() == points.len() {
@@ -129,6 +136,9 @@ pub fn clip_below(points: &[DVec3], wp: f64) -> Option<Vec<DVec3>> {
     }
     if below.is_empty() {
         return None;
+    }
+    if below.len() * (points.len() - below.len()) > CLIP_PAIRS {
+        return Some(below);
     }
     let mut out = below.clone();
     for &p in points.iter().filter(|p| p.z <= wp) {
@@ -382,6 +392,24 @@ mod polygon_tests {
 
     /// The 4-rectangle occludee rectangle is the 64-corner one, for boxes
     /// behind, across and in front of the plane.
+    #[test]
+    fn clipping_a_solid_of_many_points_keeps_a_part_of_it() {
+        // A prism of 200 points a side, cut through the middle: too many
+        // pairs, so only the 200 points on the kept side, all of them.
+        let points: Vec<DVec3> = (0..400)
+            .map(|i| {
+                let a = std::f64::consts::TAU * (i % 200) as f64 / 200.0;
+                DVec3::new(a.cos(), a.sin(), if i < 200 { 0.0 } else { 2.0 })
+            })
+            .collect();
+        let kept = clip_below(&points, 1.0).unwrap();
+        assert_eq!(kept, points[..200].to_vec());
+        // Few pairs: exact, with the crossings on the plane.
+        let kept = clip_below(&points[190..210], 1.0).unwrap();
+        assert_eq!(kept.len(), 10 + 100);
+        assert!(kept[10..].iter().all(|p| p.z == 1.0));
+    }
+
     #[test]
     fn the_occludee_rectangle_is_the_bound_of_the_corner_crossings() {
         let mut rng = Pcg64::seed_from_u64(9);

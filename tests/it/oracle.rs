@@ -643,3 +643,48 @@ fn a_cell_reaching_into_a_building_projects_from_the_part_outside() {
     assert_eq!(report.visible.iter().collect::<Vec<_>>(), vec![0, 1]);
     assert!(violations(&oracle, &tracer, &within, 50_000, &mut rng).is_empty());
 }
+
+/// A review's counterexamples to the first version of the above (stop
+/// 28): a cell poking into a solid's corner without a whole slab inside it
+/// hid a box inside the solid (the solid, clipped at a plane, was taken to
+/// hide it from viewpoints inside it); a cell inside a solid hid a
+/// triangle one f32 step beyond the solid's face (a tie at the face).
+#[test]
+fn what_lies_in_or_on_a_solid_the_cell_reaches_is_kept() {
+    let f = f32::from_bits;
+    let scene = scene_of(vec![
+        boxed(Vec3::splat(2.0), Vec3::splat(10.0)),
+        boxed(Vec3::splat(6.0), Vec3::splat(7.0)),
+    ]);
+    let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    let cell = Aabb::new(Vec3::ZERO, Vec3::new(4.0, 4.0, f(0x40066666)));
+    let ray = Ray::new(
+        Vec3::new(4.0, f(0x40195c43), f(0x40066666)),
+        Vec3::new(f(0x3ee181c6), f(0x3f0ae83c), f(0x3f371ae4)),
+    );
+    let tracer = Tracer::new(&scene);
+    assert_eq!(tracer.closest_hit(&ray).map(|h| h.object), Some(1));
+    assert!(oracle.cell(&cell, None).visible.contains(1));
+    let beyond = f(0x41200001);
+    let scene = scene_of(vec![
+        boxed(Vec3::new(2.0, -10.0, -1.0), Vec3::new(10.0, 5.5, 10.0)),
+        vec![[
+            Vec3::new(beyond, 0.0, 0.0),
+            Vec3::new(beyond, 3.0, 0.0),
+            Vec3::new(beyond, 0.0, 3.0),
+        ]],
+    ]);
+    let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    let cell = Aabb::new(Vec3::new(3.0, -1.0, 0.0), Vec3::new(5.0, 4.0, 2.0));
+    let ray = Ray::new(
+        Vec3::new(f(0x4071bd28), f(0x3edd6cb8), f(0x3e349638)),
+        Vec3::new(f(0x3f7985a7), f(0x3e64b79d), f(0xbc12b800)),
+    );
+    let tracer = Tracer::new(&scene);
+    if let Some(h) = tracer.closest_hit(&ray) {
+        assert!(oracle.cell(&cell, None).visible.contains(h.object as usize));
+    }
+    assert!(oracle.cell(&cell, None).visible.contains(1));
+    let mut rng = Pcg64::seed_from_u64(29);
+    assert!(violations(&oracle, &tracer, &cell, 50_000, &mut rng).is_empty());
+}
