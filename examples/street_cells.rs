@@ -251,7 +251,10 @@ fn main() -> ExitCode {
         }
     };
     let triangles: usize = scene.objects().iter().map(|o| o.triangle_count()).sum();
-    let mut rng = Pcg64::seed_from_u64(args.seed);
+    // Cells from one stream, rays from another: the same cells whatever
+    // the ray counts.
+    let mut cells_rng = Pcg64::seed_from_u64(args.seed);
+    let mut rng = Pcg64::seed_from_u64(args.seed ^ 0x5eed_7a75);
     let (mut done, mut tries) = (0, 0);
     let (mut objects_culled, mut triangles_culled, mut truth, mut kept, mut seconds) =
         (0.0, 0.0, 0.0, 0.0, 0.0);
@@ -271,7 +274,7 @@ fn main() -> ExitCode {
             eprintln!("error: found no place for a {kind} cell");
             return ExitCode::FAILURE;
         }
-        let Some(cell) = pick_cell(&scene, &tracer, &args, &mut rng) else {
+        let Some(cell) = pick_cell(&scene, &tracer, &args, &mut cells_rng) else {
             continue;
         };
         let mut report = oracle.cell(&cell, None);

@@ -84,6 +84,7 @@ pub use oracle_raster::Rasteriser;
 use std::time::{Duration, Instant};
 
 use glam::{DVec2, DVec3};
+use rayon::prelude::*;
 
 use crate::bitset::ObjectSet;
 use crate::geom::polygon::{convex_hull, signed_area};
@@ -463,21 +464,34 @@ impl<'a> Oracle<'a> {
         // Placement per face, then every map's occluders, rasterised in one
         // batch (one GPU submission), then the maps finished on the CPU.
         let mut faces: Vec<(Frame, Vec<f64>, FaceSetup, Vec<SweepStep>)> = Vec::new();
-        for frame in Frame::ALL {
-            let Some((chosen, face)) = self.plane(frame, cmin, cmax, parent_hidden, &mut times)
-            else {
-                continue;
-            };
-            let steps = self.sweep_plan(frame, cmin, cmax, &face, &mut times);
-            faces.push((frame, chosen, face, steps));
-        }
+        // The six faces are independent: each on its own thread where
+        // there are threads to spare (the results do not depend on it).
+        let start = Instant::now();
+        faces.extend(
+            Frame::ALL
+                .par_iter()
+                .filter_map(|&frame| {
+                    let mut t = CellTimes::default();
+                    let (chosen, face) = self.plane(frame, cmin, cmax, parent_hidden, &mut t)?;
+                    let steps = self.sweep_plan(frame, cmin, cmax, &face, &mut t);
+                    Some((frame, chosen, face, steps))
+                })
+                .collect::<Vec<_>>(),
+        );
+        times.select += start.elapsed();
         let start = Instant::now();
         let n = self.params.resolution;
-        let mut placed: Vec<Vec<ProjectedOccluder>> = Vec::new();
-        for (frame, chosen, face, _) in &faces {
-            let (lmin, lmax) = frame.local_box(cmin, cmax);
-            for &wp in chosen {
-                placed.push(self.project_occluders(
+        let placed_planes: Vec<(usize, f64)> = faces
+            .iter()
+            .enumerate()
+            .flat_map(|(k, f)| f.1.iter().map(move |&wp| (k, wp)))
+            .collect();
+        let placed: Vec<Vec<ProjectedOccluder>> = placed_planes
+            .par_iter()
+            .map(|&(k, wp)| {
+                let (frame, _, face, _) = &faces[k];
+                let (lmin, lmax) = frame.local_box(cmin, cmax);
+                self.project_occluders(
                     *frame,
                     &face.ranked,
                     self.params.max_occluders,
@@ -488,9 +502,9 @@ impl<'a> Oracle<'a> {
                     n,
                     self.plane_rect(lmin, lmax, wp),
                     f64::NEG_INFINITY,
-                ));
-            }
-        }
+                )
+            })
+            .collect();
         let jobs: Vec<MapJob> = placed
             .iter()
             .map(|o| (n, o.as_slice()))
@@ -501,27 +515,40 @@ impl<'a> Oracle<'a> {
             )
             .collect();
         let mut level0s = rasterise(&jobs).into_iter();
-        let mut planes = Vec::new();
-        let mut maps: Vec<(Frame, DepthMap, f64)> = Vec::new();
-        let mut placed = placed.iter();
-        for (frame, chosen, face, _) in &faces {
-            let (lmin, lmax) = frame.local_box(cmin, cmax);
-            for &wp in chosen {
-                let occluders = placed.next().map_or(0, Vec::len);
-                let level0 = level0s.next().expect("one map per job");
-                let (map, report) =
-                    self.finish_placed(*frame, &face.solids, lmin, lmax, wp, occluders, level0);
-                planes.push(report);
-                maps.push((*frame, map, wp));
-            }
-        }
-        let mut sweeps: Vec<Sweep> = Vec::new();
-        for (frame, _, face, steps) in faces {
-            let level0: Vec<Vec<f64>> = level0s.by_ref().take(steps.len()).collect();
-            if let Some(sweep) = self.sweep_finish(frame, cmin, cmax, &face, steps, level0) {
-                sweeps.push(sweep);
-            }
-        }
+        let placed_level0s: Vec<Vec<f64>> = level0s.by_ref().take(placed.len()).collect();
+        let (planes, maps): (Vec<PlaneReport>, Vec<(Frame, DepthMap, f64)>) = placed_planes
+            .par_iter()
+            .zip(placed.par_iter())
+            .zip(placed_level0s)
+            .map(|((&(k, wp), occluders), level0)| {
+                let (frame, _, face, _) = &faces[k];
+                let (lmin, lmax) = frame.local_box(cmin, cmax);
+                let (map, report) = self.finish_placed(
+                    *frame,
+                    &face.solids,
+                    lmin,
+                    lmax,
+                    wp,
+                    occluders.len(),
+                    level0,
+                );
+                (report, (*frame, map, wp))
+            })
+            .unzip();
+        let mut planes = planes;
+        let sweep_jobs: Vec<_> = faces
+            .into_iter()
+            .map(|(frame, _, face, steps)| {
+                let level0: Vec<Vec<f64>> = level0s.by_ref().take(steps.len()).collect();
+                (frame, face, steps, level0)
+            })
+            .collect();
+        let sweeps: Vec<Sweep> = sweep_jobs
+            .into_par_iter()
+            .filter_map(|(frame, face, steps, level0)| {
+                self.sweep_finish(frame, cmin, cmax, &face, steps, level0)
+            })
+            .collect();
         times.rasterise += start.elapsed();
         // Occludee tests: whole boxes per plane, through the hierarchy.
         let start = Instant::now();
@@ -550,46 +577,58 @@ impl<'a> Oracle<'a> {
         let on_sweeps = |pmin: DVec3, pmax: DVec3| {
             oracle_sweep::sweep_hides(&sweeps, cmin, cmax, pmin, pmax, slack)
         };
-        let mut touching = 0;
-        let mut sweep_hidden = 0;
-        let mut cluster_hidden = 0;
-        for (i, o) in self.scene.objects().iter().enumerate() {
-            if hidden.contains(i) {
-                continue;
-            }
-            let (qmin, qmax) = (o.bounds.min.as_dvec3(), o.bounds.max.as_dvec3());
-            if qmin.cmple(cmax).all() && qmax.cmpge(cmin).all() {
-                touching += 1;
-                continue;
-            }
-            if pieces_hidden(&on_maps, cmin, cmax, qmin, qmax) {
-                hidden.insert(i);
-            } else if !sweeps.is_empty()
-                && (on_sweeps(qmin, qmax)
-                    || pieces_hidden(
-                        &|a, b| on_maps(a, b) || on_sweeps(a, b),
-                        cmin,
-                        cmax,
-                        qmin,
-                        qmax,
-                    ))
-            {
-                hidden.insert(i);
-                sweep_hidden += 1;
-            } else if let Some([a, b]) = self.clusters[i].first().and_then(|c| c.children) {
-                // The object's box failed: its clusters, from the halves.
-                let both = |x: DVec3, y: DVec3| on_maps(x, y) || on_sweeps(x, y);
-                let mut test = |x: DVec3, y: DVec3| {
-                    !(x.cmple(cmax).all() && y.cmpge(cmin).all())
-                        && pieces_hidden(&both, cmin, cmax, x, y)
-                };
-                let tree = &self.clusters[i];
-                if oracle_clusters::hidden_below(tree, a, &mut test)
-                    && oracle_clusters::hidden_below(tree, b, &mut test)
-                {
-                    hidden.insert(i);
-                    cluster_hidden += 1;
+        // Each object on its own: 0 not hidden, 1 touching the cell, 2
+        // hidden on the maps, 3 by the sweeps, 4 cluster by cluster.
+        let verdicts: Vec<u8> = self
+            .scene
+            .objects()
+            .par_iter()
+            .enumerate()
+            .map(|(i, o)| {
+                if hidden.contains(i) {
+                    return 0;
                 }
+                let (qmin, qmax) = (o.bounds.min.as_dvec3(), o.bounds.max.as_dvec3());
+                if qmin.cmple(cmax).all() && qmax.cmpge(cmin).all() {
+                    return 1;
+                }
+                if pieces_hidden(&on_maps, cmin, cmax, qmin, qmax) {
+                    return 2;
+                }
+                if !sweeps.is_empty()
+                    && (on_sweeps(qmin, qmax)
+                        || pieces_hidden(
+                            &|a, b| on_maps(a, b) || on_sweeps(a, b),
+                            cmin,
+                            cmax,
+                            qmin,
+                            qmax,
+                        ))
+                {
+                    return 3;
+                }
+                if let Some([a, b]) = self.clusters[i].first().and_then(|c| c.children) {
+                    // The object's box failed: its clusters, from the halves.
+                    let both = |x: DVec3, y: DVec3| on_maps(x, y) || on_sweeps(x, y);
+                    let mut test = |x: DVec3, y: DVec3| {
+                        !(x.cmple(cmax).all() && y.cmpge(cmin).all())
+                            && pieces_hidden(&both, cmin, cmax, x, y)
+                    };
+                    let tree = &self.clusters[i];
+                    if oracle_clusters::hidden_below(tree, a, &mut test)
+                        && oracle_clusters::hidden_below(tree, b, &mut test)
+                    {
+                        return 4;
+                    }
+                }
+                0
+            })
+            .collect();
+        let count = |v: u8| verdicts.iter().filter(|&&x| x == v).count();
+        let (touching, sweep_hidden, cluster_hidden) = (count(1), count(3), count(4));
+        for (i, &v) in verdicts.iter().enumerate() {
+            if v >= 2 {
+                hidden.insert(i);
             }
         }
         times.test = start.elapsed();

@@ -125,7 +125,9 @@ impl Rasteriser {
                 }
             }
         }
-        jobs.iter().map(|&(n, o)| cpu_rasterise(n, o)).collect()
+        // Independent maps: on as many threads as are free.
+        use rayon::prelude::*;
+        jobs.par_iter().map(|&(n, o)| cpu_rasterise(n, o)).collect()
     }
 
     /// The `n` x `n` level-0 map of `occluders` (see [`cpu_rasterise`]).
