@@ -741,8 +741,13 @@ impl<'a> Oracle<'a> {
             .enumerate()
             .filter(|(_, s)| {
                 let hidden = parent_hidden.is_some_and(|h| h.contains(s.object as usize));
-                let touching = s.min.cmple(cmax).all() && s.max.cmpge(cmin).all();
-                !hidden && !touching && s.open_bottom.is_none_or(|floor| cmin.z > floor)
+                // Within the tracer's rounding of the cell counts as
+                // touching: a ray from a hair outside a face can start
+                // past it (a review's counterexample: a cell one f32 step
+                // short of a floorless building's wall saw into it).
+                let pad = DVec3::splat(slack);
+                let touching = (s.min - pad).cmple(cmax).all() && (s.max + pad).cmpge(cmin).all();
+                !hidden && !touching && s.open_bottom.is_none_or(|floor| cmin.z > floor + slack)
             })
             .map(|(i, s)| {
                 let (smin, smax) = frame.local_box(s.min, s.max);

@@ -688,3 +688,40 @@ fn what_lies_in_or_on_a_solid_the_cell_reaches_is_kept() {
     let mut rng = Pcg64::seed_from_u64(29);
     assert!(violations(&oracle, &tracer, &cell, 50_000, &mut rng).is_empty());
 }
+
+/// A review's counterexamples (stop 28): solids the oracle slices (a
+/// floorless box, a closed L-shaped extrusion) were cut on planes from a
+/// cell one f32 step short of their walls, and a ray from the cell's
+/// corner started past the wall (the tracer's t rounds below 0) and saw
+/// the box inside.
+#[test]
+fn a_cell_a_hair_from_a_sliced_solid_keeps_what_is_inside_it() {
+    let f = f32::from_bits;
+    let mut floorless = boxed(Vec3::new(20.0, 0.5, 0.0), Vec3::new(30.0, 10.5, 10.0));
+    // push_box's two triangles on z = 0 go: the mesh is open at its floor.
+    floorless.retain(|t| !t.iter().all(|p| p.z == 0.0));
+    let scene = scene_of(vec![
+        floorless,
+        boxed(Vec3::new(24.0, 4.5, 1.0), Vec3::new(25.0, 5.5, 2.0)),
+    ]);
+    let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    assert_eq!(oracle.solid_count(), 2, "both are sliced");
+    let cell = Aabb::new(
+        Vec3::new(f(0x41b00000), f(0xbf000000), f(0x40400000)),
+        Vec3::new(f(0x41d00000), f(0x3effffff), f(0x40e00000)),
+    );
+    let ray = Ray::new(
+        Vec3::new(f(0x41d00000), f(0x3effffff), f(0x40e00000)),
+        Vec3::new(f(0xbe4e1d65), f(0x3f26845d), f(0xbf3b7db0)),
+    );
+    let tracer = Tracer::new(&scene);
+    let hit = tracer.closest_hit(&ray).expect("the witness hits");
+    assert!(
+        oracle
+            .cell(&cell, None)
+            .visible
+            .contains(hit.object as usize)
+    );
+    let mut rng = Pcg64::seed_from_u64(30);
+    assert!(violations(&oracle, &tracer, &cell, 100_000, &mut rng).is_empty());
+}
