@@ -1177,8 +1177,12 @@ impl<'a> Oracle<'a> {
             // way to the plane onwards is tried, whose views stay bounded.
             let near = lmax.z + 1e-6 * (wp - lmin.z);
             let fallback = (lmax.z + 0.05 * (wp - lmax.z)).max(near);
-            let Some((views, depth)) = [near, fallback].into_iter().find_map(|near| {
-                let clipped = clip_below(&points, wp).and_then(|p| clip_above(&p, near))?;
+            // Err(true): the views blew up (worth the fallback); Err(false):
+            // nothing left, or a view seen edge-on.
+            let attempt = |near: f64| -> Result<(Vec<Vec<DVec2>>, f64), bool> {
+                let clipped = clip_below(&points, wp)
+                    .and_then(|p| clip_above(&p, near))
+                    .ok_or(false)?;
                 let depth = clipped
                     .iter()
                     .map(|p| p.z)
@@ -1190,7 +1194,7 @@ impl<'a> Oracle<'a> {
                     .flatten();
                 let views = ordered.unwrap_or_else(|| occluder_views(&clipped, eyes, wp));
                 if views.iter().any(|v| v.len() < 3) {
-                    return None;
+                    return Err(false);
                 }
                 // A safety net against the same: views reaching 1e8 pixels
                 // away are dropped.
@@ -1199,11 +1203,17 @@ impl<'a> Oracle<'a> {
                     !(*p - rmin).abs().max_element().is_finite()
                         || (*p - rmin).abs().max_element() >= far
                 });
-                (!wild).then_some((views, depth))
-            }) else {
-                continue;
+                if wild { Err(true) } else { Ok((views, depth)) }
             };
-            let mut views = views;
+            let lowest = points.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+            let (mut views, depth) = match attempt(near) {
+                Ok(found) => found,
+                Err(true) if lowest < fallback => match attempt(fallback) {
+                    Ok(found) => found,
+                    Err(_) => continue,
+                },
+                Err(_) => continue,
+            };
             // Off the map entirely: useless.
             let (vlo, vhi) = views[0]
                 .iter()
