@@ -435,10 +435,21 @@ impl<'a> Oracle<'a> {
             }
         }
         let mut keep = ObjectSet::new(objects);
+        let mut near = Vec::new();
         for &i in &reached {
             let s = &self.occluders[i];
             let (smin, smax) = (s.min - pad, s.max + pad);
-            for (j, o) in self.scene.objects().iter().enumerate() {
+            // The hierarchy's candidates (f32 box rounded outwards), then
+            // the exact test.
+            let outward = Aabb::new(
+                smin.as_vec3().map(f32::next_down),
+                smax.as_vec3().map(f32::next_up),
+            );
+            near.clear();
+            self.hierarchy.overlapping(&outward, &mut near);
+            for &j in &near {
+                let j = j as usize;
+                let o = &self.scene.objects()[j];
                 let (a, b) = (o.bounds.min.as_dvec3(), o.bounds.max.as_dvec3());
                 if a.cmple(smax).all() && b.cmpge(smin).all() && !hidden.contains(j) {
                     keep.insert(j);

@@ -153,7 +153,8 @@ pub fn clip_below(points: &[DVec3], wp: f64) -> Option<Vec<DVec3>> {
     // polygon's two crossings have no hull: kept as they are.
     let mut out = below;
     if crossings.len() > 8 {
-        let hull = convex_hull(&mut crossings.clone());
+        // Sorted and deduplicated in place: the same points if no hull.
+        let hull = convex_hull(&mut crossings);
         if hull.len() >= 3 {
             crossings = hull;
         }
