@@ -48,7 +48,7 @@ use vis5d::sample::SEGMENT_SLACK;
 use vis5d::scene::Scene;
 use vis5d::trace::{Ray, Tracer};
 
-const USAGE: &str = "usage: street_cells MODEL CELLS SIZE [--height H] [--rooms] [--anywhere] [--rays N] [--aimed N] [--split K]\n  [--seed S] [--gpu] [--list]\n  [--sweep-planes N] [--sweep-patches N] [--sweep-extension X]\n  [--occludee-depth N]";
+const USAGE: &str = "usage: street_cells MODEL CELLS SIZE [--height H] [--rooms] [--anywhere] [--rays N] [--aimed N] [--split K]\n  [--seed S] [--gpu] [--list]\n  [--sweep-planes N] [--sweep-patches N] [--sweep-extension X]\n  [--occludee-depth N] [--shaft-budget N] [--shaft-depth N]";
 
 /// The command line.
 struct Args {
@@ -133,6 +133,16 @@ fn parse() -> Result<Args, String> {
                 args.params.occludee_depth = value("--occludee-depth")?
                     .parse()
                     .map_err(|_| "--occludee-depth must be a count")?
+            }
+            "--shaft-budget" => {
+                args.params.shaft_budget = value("--shaft-budget")?
+                    .parse()
+                    .map_err(|_| "--shaft-budget must be a count")?
+            }
+            "--shaft-depth" => {
+                args.params.shaft_depth = value("--shaft-depth")?
+                    .parse()
+                    .map_err(|_| "--shaft-depth must be a count")?
             }
             "--rooms" => args.rooms = true,
             "--anywhere" => args.anywhere = true,

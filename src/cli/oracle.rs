@@ -50,6 +50,15 @@ pub struct OracleFlags {
     /// only) [1 to 16].
     #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u8).range(1..=16))]
     pub occludee_depth: u8,
+    /// Shafts: an object the maps did not hide is tried one occluder at a
+    /// time (strong occlusion), the cell and the object's box cut in halves
+    /// until every part is blocked by one convex occluder; at most this
+    /// many shafts an object [0 (off) to 1,000,000].
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
+    pub shaft_budget: u32,
+    /// Shafts: the most cuts along one path [0 to 32].
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u8).range(0..=32))]
+    pub shaft_depth: u8,
     /// Rasterise the Depth Maps on the CPU even when a GPU adapter exists
     /// (the default uses the GPU through wgpu, and the CPU when there is
     /// none).
@@ -68,6 +77,8 @@ impl OracleFlags {
             sweep_planes: self.sweep_planes.into(),
             sweep_patches: self.sweep_patches.into(),
             occludee_depth: self.occludee_depth.into(),
+            shaft_budget: self.shaft_budget as usize,
+            shaft_depth: self.shaft_depth.into(),
             ..OracleParams::default()
         };
         p.validate().map_err(|e| match &e {
@@ -167,6 +178,8 @@ struct OracleJson<'a> {
     sweep_planes: usize,
     sweep_hidden: usize,
     cluster_hidden: usize,
+    /// Objects proved hidden only shaft by shaft.
+    shaft_hidden: usize,
     /// Closed convex solids the cell reaches into by a whole slab (or
     /// lies in).
     inside_solids: usize,
@@ -234,6 +247,7 @@ pub fn run(args: &OracleArgs) -> Result<()> {
         sweep_planes: report.sweep_planes,
         sweep_hidden: report.sweep_hidden,
         cluster_hidden: report.cluster_hidden,
+        shaft_hidden: report.shaft_hidden,
         inside_solids: report.inside_solids,
         projected_from: [
             frame.to_world(report.projected_from.min).to_array(),
@@ -302,6 +316,13 @@ pub fn run(args: &OracleArgs) -> Result<()> {
             out,
             "  occludee clusters: {} more objects hidden cluster by cluster",
             json.cluster_hidden
+        )?;
+    }
+    if json.shaft_hidden > 0 {
+        writeln!(
+            out,
+            "  shafts: {} more objects hidden one occluder at a time",
+            json.shaft_hidden
         )?;
     }
     writeln!(

@@ -71,6 +71,7 @@ mod oracle_patches;
 mod oracle_plane;
 mod oracle_project;
 mod oracle_raster;
+mod oracle_shaft;
 mod oracle_slice;
 mod oracle_sweep;
 
@@ -133,6 +134,12 @@ pub struct OracleParams {
     /// tried cluster by cluster, its triangles cut in halves this many
     /// levels deep (1: whole objects only; at most 16).
     pub occludee_depth: usize,
+    /// Shafts (`oracle_shaft.rs`): an object the maps and sweeps did not
+    /// hide is tried one occluder at a time, the cell and its box cut in
+    /// halves, testing at most this many shafts (0: not tried).
+    pub shaft_budget: usize,
+    /// Shafts: the most cuts along one path (at most 32).
+    pub shaft_depth: usize,
 }
 
 impl Default for OracleParams {
@@ -149,6 +156,8 @@ impl Default for OracleParams {
             sweep_patches: 4,
             sweep_extension: 1.5,
             occludee_depth: 6,
+            shaft_budget: 512,
+            shaft_depth: 16,
         }
     }
 }
@@ -198,6 +207,9 @@ impl OracleParams {
                 "finite and >= 0",
                 &self.sweep_extension,
             ));
+        }
+        if self.shaft_depth > 32 {
+            return Err(bad("shaft_depth", "in 0..=32", &self.shaft_depth));
         }
         if !(1..=16).contains(&self.occludee_depth) {
             return Err(bad("occludee_depth", "in 1..=16", &self.occludee_depth));
@@ -270,6 +282,8 @@ pub struct CellReport {
     pub sweep_hidden: usize,
     /// Objects proved hidden only cluster by cluster.
     pub cluster_hidden: usize,
+    /// Objects proved hidden only shaft by shaft (`oracle_shaft.rs`).
+    pub shaft_hidden: usize,
     /// Closed convex solids the cell reaches into by a whole slab (or lies
     /// in): the projections ran from the rest of the cell, and what meets
     /// their boxes is kept (`oracle_inside.rs`).
@@ -291,6 +305,7 @@ pub struct Oracle<'a> {
     clusters: Vec<Vec<oracle_clusters::Cluster>>,
     counts: OccluderCounts,
     hierarchy: BoxTree,
+    shafts: oracle_shaft::Shafts,
     params: OracleParams,
     rasteriser: Rasteriser,
 }
@@ -316,6 +331,7 @@ impl<'a> Oracle<'a> {
             Vec::new()
         };
         let clusters = oracle_clusters::build(scene, params.occludee_depth);
+        let shafts = oracle_shaft::Shafts::new(&occluders);
         Ok(Self {
             scene,
             occluders,
@@ -324,6 +340,7 @@ impl<'a> Oracle<'a> {
             clusters,
             counts,
             hierarchy: BoxTree::new(&boxes),
+            shafts,
             params,
             rasteriser,
         })
@@ -392,6 +409,7 @@ impl<'a> Oracle<'a> {
                 sweep_planes: 0,
                 sweep_hidden: 0,
                 cluster_hidden: 0,
+                shaft_hidden: 0,
                 inside_solids: 0,
                 projected_from: *cell,
                 times: CellTimes::default(),
@@ -467,6 +485,7 @@ impl<'a> Oracle<'a> {
                 sweep_planes: 0,
                 sweep_hidden: 0,
                 cluster_hidden: 0,
+                shaft_hidden: 0,
                 inside_solids: 1,
                 projected_from,
                 times,
@@ -588,8 +607,18 @@ impl<'a> Oracle<'a> {
         let on_sweeps = |pmin: DVec3, pmax: DVec3| {
             oracle_sweep::sweep_hides(&sweeps, cmin, cmax, pmin, pmax, slack)
         };
+        let skip_parent =
+            |o: &Occluder| parent_hidden.is_some_and(|h| h.contains(o.object as usize));
+        let shaft_search = oracle_shaft::Search {
+            occluders: &self.occluders,
+            skip: &skip_parent,
+            slack,
+            budget: self.params.shaft_budget,
+            depth: self.params.shaft_depth,
+        };
         // Each object on its own: 0 not hidden, 1 touching the cell, 2
-        // hidden on the maps, 3 by the sweeps, 4 cluster by cluster.
+        // hidden on the maps, 3 by the sweeps, 4 cluster by cluster, 5
+        // shaft by shaft.
         let verdicts: Vec<u8> = self
             .scene
             .objects()
@@ -632,11 +661,24 @@ impl<'a> Oracle<'a> {
                         return 4;
                     }
                 }
+                if self.params.shaft_budget > 0
+                    && self.shafts.hidden(
+                        &shaft_search,
+                        i as u32,
+                        &self.clusters[i],
+                        (cmin, cmax),
+                        qmin,
+                        qmax,
+                    )
+                {
+                    return 5;
+                }
                 0
             })
             .collect();
         let count = |v: u8| verdicts.iter().filter(|&&x| x == v).count();
-        let (touching, sweep_hidden, cluster_hidden) = (count(1), count(3), count(4));
+        let (touching, sweep_hidden, cluster_hidden, shaft_hidden) =
+            (count(1), count(3), count(4), count(5));
         for (i, &v) in verdicts.iter().enumerate() {
             if v >= 2 {
                 hidden.insert(i);
@@ -654,6 +696,7 @@ impl<'a> Oracle<'a> {
             sweep_planes: sweeps.iter().map(|s| s.planes.len()).sum(),
             sweep_hidden,
             cluster_hidden,
+            shaft_hidden,
             inside_solids: inside.len(),
             projected_from,
             times,

@@ -159,29 +159,7 @@ mod tests {
 
     /// The box `[a, b]` as a solid occluder.
     fn box_solid(a: DVec3, b: DVec3) -> Occluder {
-        let mut points = Vec::new();
-        for i in 0..8 {
-            points.push(DVec3::new(
-                if i & 1 == 0 { a.x } else { b.x },
-                if i & 2 == 0 { a.y } else { b.y },
-                if i & 4 == 0 { a.z } else { b.z },
-            ));
-        }
-        let mut o = Occluder {
-            object: 0,
-            points,
-            min: a,
-            max: b,
-            solid: true,
-            planes: Vec::new(),
-        };
-        for axis in 0..3 {
-            let mut n = DVec3::ZERO;
-            n[axis] = 1.0;
-            o.planes.push((n, b[axis]));
-            o.planes.push((-n, -a[axis]));
-        }
-        o
+        Occluder::test_box(0, a, b)
     }
 
     #[test]

@@ -70,6 +70,28 @@ impl Occluder {
         }
     }
 
+    /// The box `[a, b]` as a closed convex solid of `object` (tests).
+    #[cfg(test)]
+    pub(crate) fn test_box(object: u32, a: DVec3, b: DVec3) -> Self {
+        let points = (0..8)
+            .map(|i| {
+                DVec3::new(
+                    if i & 1 == 0 { a.x } else { b.x },
+                    if i & 2 == 0 { a.y } else { b.y },
+                    if i & 4 == 0 { a.z } else { b.z },
+                )
+            })
+            .collect();
+        let mut o = Self::new(object, points, true);
+        for axis in 0..3 {
+            let mut n = DVec3::ZERO;
+            n[axis] = 1.0;
+            o.planes.push((n, b[axis]));
+            o.planes.push((-n, -a[axis]));
+        }
+        o
+    }
+
     /// How far a solid's vertices may lie outside its face planes (the
     /// convexity test's tolerance): a point is surely inside the solid
     /// when it is inside every plane by more than this.

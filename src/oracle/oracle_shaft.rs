@@ -1,0 +1,709 @@
+//! Shafts: an object hidden from the cell one occluder at a time, the cell
+//! and the object's box cut in halves until every part of the segments
+//! between them is blocked by a single convex occluder.
+//!
+//! The Depth Maps fuse occluders on planes parallel to the cell's faces:
+//! a wall at right angles to the plane covers only a line of it, so the
+//! furniture of the room across a corridor, hidden from a room by its
+//! walls and the partitions beyond them *together*, stays kept. Here the
+//! fusion comes from cutting the segments instead (strong occlusion, after
+//! Cohen-Or et al. 1998, with the subdivision of papers/001's occludee
+//! test): for a part `A` of the cell and a part `B` of the object's box,
+//! every segment from `A` to `B` is blocked when some convex occluder `O`
+//! holds, inside it, every point where those segments cross a plane `P`
+//! that has `A` strictly on one side and `B` strictly on the other. Those
+//! crossings fill `conv(A u B) n P`, the convex hull of the crossings of
+//! the 64 segments between the boxes' corners (a point of `conv(A u B)` on
+//! `P` lies on a segment from a point of `A` to a point of `B`, and that
+//! segment's crossing moves projectively, convexity kept, with its ends):
+//! so the 64 corner crossings inside `O` suffice.
+//!
+//! Why a segment crossing `P` inside `O` cannot see `B`'s object:
+//! - `O` a closed convex solid: the segment passes through `O`'s inside;
+//!   when its start `a` is outside `O` it enters `O` before the crossing,
+//!   and when its end `b` is outside it leaves `O` after the crossing:
+//!   either way it meets `O`'s (watertight) surface strictly between `a`
+//!   and `b`. So one of the two boxes must be apart from `O`'s box (by the
+//!   tracer's rounding), and the crossings must lie inside `O` by that
+//!   rounding plus its convexity tolerance.
+//! - `O` a planar convex polygon: `P` is its plane and the crossing is on
+//!   it, inside it by the rounding plus the polygon's flatness tolerance
+//!   over the sine of the segment's angle to the plane (a segment grazing
+//!   a slightly bent polygon crosses its triangles away from `P`'s point).
+//! - `O` of the object itself is no proof (a hit on it is the object
+//!   seen), so an object's own occluders are skipped.
+//!
+//! The planes of a solid are at several depths along its thinnest face
+//! normals: a segment crossing a joint between two abutting wall boxes at
+//! the middle of the wall crosses one box or the other nearer a face.
+//! A shaft no occluder blocks is cut: the longer of the two boxes at its
+//! middle (an object's box along its tree of triangle clusters, whose
+//! boxes are tighter), each half a shaft of its own, until a depth or a
+//! budget of tests runs out: then the object is kept.
+
+use glam::DVec3;
+
+use super::oracle_clusters::Cluster;
+use super::oracle_occluders::Occluder;
+use crate::geom::{Aabb, BoxNode, BoxTree};
+
+/// Where, across a solid's width along one of its face normals, its
+/// blocking planes lie (the middle first).
+const DEPTHS: [f64; 3] = [0.5, 0.15, 0.85];
+/// How many of a solid's face normals (its thinnest) give planes.
+const NORMALS: usize = 3;
+/// Two normals closer than this (1 - |cos|) are one.
+const PARALLEL: f64 = 1e-9;
+
+/// One occluder's blocking planes `(n, c)` (`n . p = c`, `n` a unit vector)
+/// and, for a polygon, the half-planes of its edges within its plane
+/// (`m . p <= e`, `m` outward and unit).
+#[derive(Clone, Debug, Default)]
+struct Blocker {
+    planes: Vec<(DVec3, f64)>,
+    edges: Vec<(DVec3, f64)>,
+    /// A polygon's flatness tolerance (how far its corners may lie off its
+    /// plane); 0 for a solid.
+    flatness: f64,
+}
+
+/// The shaft tests' view of the occluders, built once per scene.
+pub struct Shafts {
+    blockers: Vec<Blocker>,
+    tree: BoxTree,
+}
+
+/// A part of an object's box: a box, and the cluster it is, if any.
+#[derive(Clone, Copy, Debug)]
+struct Part {
+    min: DVec3,
+    max: DVec3,
+    cluster: Option<u32>,
+}
+
+/// What one object's search needs.
+pub struct Search<'a> {
+    /// The occluders (as the oracle holds them).
+    pub occluders: &'a [Occluder],
+    /// Occluders not to use (their objects proved hidden from a parent
+    /// cell, so `check`'s top-down walk matches the maps').
+    pub skip: &'a (dyn Fn(&Occluder) -> bool + Sync),
+    /// The tracer's rounding at the cell's scale.
+    pub slack: f64,
+    /// The most shafts tested for one object.
+    pub budget: usize,
+    /// The most cuts along one path.
+    pub depth: usize,
+}
+
+impl Shafts {
+    /// The blocking planes of every occluder and a hierarchy of their
+    /// boxes.
+    pub fn new(occluders: &[Occluder]) -> Self {
+        let blockers = occluders.iter().map(blocker).collect();
+        let boxes: Vec<Aabb> = occluders.iter().map(|o| outward(o.min, o.max)).collect();
+        Self {
+            blockers,
+            tree: BoxTree::new(&boxes),
+        }
+    }
+
+    /// Whether every segment from the cell `[cmin, cmax]` to object
+    /// `object`'s box `[qmin, qmax]` (its clusters `clusters`, root first,
+    /// may be empty) is blocked, shaft by shaft, by occluders of other
+    /// objects.
+    pub fn hidden(
+        &self,
+        search: &Search,
+        object: u32,
+        clusters: &[Cluster],
+        cell: (DVec3, DVec3),
+        qmin: DVec3,
+        qmax: DVec3,
+    ) -> bool {
+        let b = Part {
+            min: qmin,
+            max: qmax,
+            cluster: (!clusters.is_empty()).then_some(0),
+        };
+        let mut budget = search.budget;
+        let mut hint = None;
+        let mut near = Vec::new();
+        self.shaft(
+            search,
+            object,
+            clusters,
+            cell,
+            b,
+            0,
+            &mut budget,
+            &mut hint,
+            &mut near,
+        )
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn shaft(
+        &self,
+        search: &Search,
+        object: u32,
+        clusters: &[Cluster],
+        a: (DVec3, DVec3),
+        b: Part,
+        depth: usize,
+        budget: &mut usize,
+        hint: &mut Option<usize>,
+        near: &mut Vec<u32>,
+    ) -> bool {
+        if *budget == 0 {
+            return false;
+        }
+        *budget -= 1;
+        let (bmin, bmax) = (b.min, b.max);
+        // A part meeting the cell is seen from where it is.
+        if bmin.cmple(a.1).all() && bmax.cmpge(a.0).all() {
+            return false;
+        }
+        if let Some(k) = *hint
+            && self.blocks(search, k, a, (bmin, bmax))
+        {
+            return true;
+        }
+        // An occluder blocking every segment blocks the one between the
+        // boxes' centres: only those meeting it are tried. None: that
+        // segment is in some part of every cut, which nothing can block.
+        near.clear();
+        let (p, q) = (0.5 * (a.0 + a.1), 0.5 * (bmin + bmax));
+        self.along(p, q, near);
+        let mut any = false;
+        for &k in near.iter() {
+            let k = k as usize;
+            let o = &search.occluders[k];
+            if o.object == object || (search.skip)(o) || !meets(o, p, q) {
+                continue;
+            }
+            any = true;
+            if Some(k) != *hint && self.blocks(search, k, a, (bmin, bmax)) {
+                *hint = Some(k);
+                return true;
+            }
+        }
+        if !any || depth >= search.depth {
+            return false;
+        }
+        // Cut the box and side that spread the crossings most: a side's
+        // length times the sine of its angle to the shaft's axis.
+        let (asize, bsize) = (a.1 - a.0, bmax - bmin);
+        let d = (0.5 * (bmin + bmax - a.0 - a.1)).normalize_or_zero();
+        let across = DVec3::ONE - d * d;
+        let spread = |size: DVec3| {
+            let s = size * across.max(DVec3::ZERO).map(f64::sqrt);
+            (s.max_element(), longest(s))
+        };
+        let ((aspread, aaxis), (bspread, baxis)) = (spread(asize), spread(bsize));
+        if aspread >= bspread {
+            let axis = aaxis;
+            let mid = 0.5 * (a.0[axis] + a.1[axis]);
+            let (mut lo, mut hi) = (a.1, a.0);
+            lo[axis] = mid;
+            hi[axis] = mid;
+            self.shaft(
+                search,
+                object,
+                clusters,
+                (a.0, lo),
+                b,
+                depth + 1,
+                budget,
+                hint,
+                near,
+            ) && self.shaft(
+                search,
+                object,
+                clusters,
+                (hi, a.1),
+                b,
+                depth + 1,
+                budget,
+                hint,
+                near,
+            )
+        } else {
+            let halves = match b.cluster.and_then(|k| clusters[k as usize].children) {
+                Some(children) => children.map(|k| {
+                    let c = &clusters[k as usize];
+                    Part {
+                        min: c.min,
+                        max: c.max,
+                        cluster: Some(k),
+                    }
+                }),
+                None => {
+                    // A leaf cluster (all its triangles inside its box) or
+                    // a box: halves of the box.
+                    let axis = baxis;
+                    let mid = 0.5 * (bmin[axis] + bmax[axis]);
+                    let (mut lo, mut hi) = (bmax, bmin);
+                    lo[axis] = mid;
+                    hi[axis] = mid;
+                    [
+                        Part {
+                            min: bmin,
+                            max: lo,
+                            cluster: None,
+                        },
+                        Part {
+                            min: hi,
+                            max: bmax,
+                            cluster: None,
+                        },
+                    ]
+                }
+            };
+            halves.iter().all(|&h| {
+                self.shaft(
+                    search,
+                    object,
+                    clusters,
+                    a,
+                    h,
+                    depth + 1,
+                    budget,
+                    hint,
+                    near,
+                )
+            })
+        }
+    }
+
+    /// Appends to `out` the occluders whose boxes (rounded outwards) the
+    /// segment `p -> q` meets.
+    fn along(&self, p: DVec3, q: DVec3, out: &mut Vec<u32>) {
+        let nodes = self.tree.nodes();
+        if nodes.is_empty() {
+            return;
+        }
+        let d = q - p;
+        let inv = DVec3::ONE / d;
+        let hit = |b: &Aabb| {
+            let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
+            let (mut t0, mut t1) = (0.0f64, 1.0f64);
+            for axis in 0..3 {
+                if d[axis] == 0.0 {
+                    if p[axis] < lo[axis] || p[axis] > hi[axis] {
+                        return false;
+                    }
+                    continue;
+                }
+                let (u, v) = (
+                    (lo[axis] - p[axis]) * inv[axis],
+                    (hi[axis] - p[axis]) * inv[axis],
+                );
+                t0 = t0.max(u.min(v));
+                t1 = t1.min(u.max(v));
+            }
+            t0 <= t1
+        };
+        let mut stack = vec![0u32];
+        while let Some(k) = stack.pop() {
+            let node = &nodes[k as usize];
+            if !hit(node.bounds()) {
+                continue;
+            }
+            match node {
+                BoxNode::Object { object, .. } => out.push(*object),
+                BoxNode::Inner { children, .. } => stack.extend_from_slice(children),
+            }
+        }
+    }
+
+    /// Whether occluder `k` blocks every segment from box `a` to box `b`.
+    fn blocks(&self, search: &Search, k: usize, a: (DVec3, DVec3), b: (DVec3, DVec3)) -> bool {
+        let o = &search.occluders[k];
+        let slack = search.slack;
+        let pad = DVec3::splat(slack);
+        let apart =
+            |(lo, hi): (DVec3, DVec3)| hi.cmplt(o.min - pad).any() || lo.cmpgt(o.max + pad).any();
+        if o.solid && !apart(a) && !apart(b) {
+            return false;
+        }
+        let blocker = &self.blockers[k];
+        blocker
+            .planes
+            .iter()
+            .any(|&(n, c)| crossings_inside(o, blocker, n, c, a, b, slack))
+    }
+}
+
+/// Whether the plane `n . p = c` separates boxes `a` and `b` (by more than
+/// `slack`) and every crossing of a segment between their corners lies
+/// inside occluder `o`.
+fn crossings_inside(
+    o: &Occluder,
+    blocker: &Blocker,
+    n: DVec3,
+    c: f64,
+    a: (DVec3, DVec3),
+    b: (DVec3, DVec3),
+    slack: f64,
+) -> bool {
+    let range = |(lo, hi): (DVec3, DVec3)| {
+        let (x, y) = (n * lo, n * hi);
+        let (mn, mx) = (x.min(y), x.max(y));
+        (mn.x + mn.y + mn.z, mx.x + mx.y + mx.z)
+    };
+    let ((alo, ahi), (blo, bhi)) = (range(a), range(b));
+    let separated = (ahi < c - slack && blo > c + slack) || (bhi < c - slack && alo > c + slack);
+    if !separated {
+        return false;
+    }
+    let corners = |(lo, hi): (DVec3, DVec3)| -> [DVec3; 8] {
+        std::array::from_fn(|i| {
+            DVec3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            )
+        })
+    };
+    let (ca, cb) = (corners(a), corners(b));
+    let solid_margin = slack + 16.0 * o.tolerance();
+    for &p in &ca {
+        let sp = n.dot(p) - c;
+        for &q in &cb {
+            let sq = n.dot(q) - c;
+            let x = p + (q - p) * (sp / (sp - sq));
+            let inside = if o.solid {
+                o.planes.iter().all(|&(m, d)| m.dot(x) <= d - solid_margin)
+            } else {
+                // The sine of the segment's angle to the plane.
+                let sine = (sp - sq).abs() / (q - p).length();
+                let margin = slack + blocker.flatness / sine;
+                blocker.edges.iter().all(|&(m, e)| m.dot(x) <= e - margin)
+            };
+            if !inside {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// Whether the segment `p -> q` meets occluder `o` (a solid's inside, a
+/// polygon's plane inside its corners' hull): a guide, not a proof.
+fn meets(o: &Occluder, p: DVec3, q: DVec3) -> bool {
+    let d = q - p;
+    if o.solid {
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        for &(n, c) in &o.planes {
+            let (sp, sd) = (n.dot(p) - c, n.dot(d));
+            if sd == 0.0 {
+                if sp > 0.0 {
+                    return false;
+                }
+            } else if sd > 0.0 {
+                t1 = t1.min(-sp / sd);
+            } else {
+                t0 = t0.max(-sp / sd);
+            }
+            if t0 > t1 {
+                return false;
+            }
+        }
+        return true;
+    }
+    if o.points.len() < 3 {
+        return false;
+    }
+    let (a, b, c) = (o.points[0], o.points[1], o.points[2]);
+    let n = (b - a).cross(c - a);
+    let (sp, sq) = (n.dot(p - a), n.dot(q - a));
+    if sp * sq > 0.0 || sp == sq {
+        return false;
+    }
+    let x = p + d * (sp / (sp - sq));
+    // Inside the hull: the same side of every edge.
+    let k = o.points.len();
+    let sides: Vec<f64> = (0..k)
+        .map(|i| {
+            let (u, v) = (o.points[i], o.points[(i + 1) % k]);
+            (v - u).cross(x - u).dot(n)
+        })
+        .collect();
+    sides.iter().all(|&s| s >= 0.0) || sides.iter().all(|&s| s <= 0.0)
+}
+
+/// The index of the longest side.
+fn longest(size: DVec3) -> usize {
+    if size.x >= size.y && size.x >= size.z {
+        0
+    } else if size.y >= size.z {
+        1
+    } else {
+        2
+    }
+}
+
+/// The f32 box holding `[min, max]`, rounded outwards.
+fn outward(min: DVec3, max: DVec3) -> Aabb {
+    Aabb::new(
+        min.as_vec3().map(f32::next_down),
+        max.as_vec3().map(f32::next_up),
+    )
+}
+
+/// An occluder's blocking planes (and a polygon's edges).
+fn blocker(o: &Occluder) -> Blocker {
+    if o.solid {
+        // Distinct face normals with the solid's width along each.
+        let mut normals: Vec<(f64, DVec3, f64, f64)> = Vec::new();
+        for &(n, _) in &o.planes {
+            if normals
+                .iter()
+                .any(|&(_, m, _, _)| 1.0 - n.dot(m).abs() < PARALLEL)
+            {
+                continue;
+            }
+            let (lo, hi) = o
+                .points
+                .iter()
+                .map(|&p| n.dot(p))
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                    (a.min(x), b.max(x))
+                });
+            normals.push((hi - lo, n, lo, hi));
+        }
+        normals.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let planes = normals
+            .iter()
+            .take(NORMALS)
+            .flat_map(|&(_, n, lo, hi)| DEPTHS.iter().map(move |&f| (n, lo + f * (hi - lo))))
+            .collect();
+        return Blocker {
+            planes,
+            edges: Vec::new(),
+            flatness: 0.0,
+        };
+    }
+    let p = &o.points;
+    if p.len() < 3 {
+        return Blocker::default();
+    }
+    // Newell's normal: the polygon's points run counter-clockwise around it.
+    let mut n = DVec3::ZERO;
+    for i in 0..p.len() {
+        let (u, v) = (p[i], p[(i + 1) % p.len()]);
+        n += DVec3::new(
+            (u.y - v.y) * (u.z + v.z),
+            (u.z - v.z) * (u.x + v.x),
+            (u.x - v.x) * (u.y + v.y),
+        );
+    }
+    let Some(n) = n.try_normalize() else {
+        return Blocker::default();
+    };
+    let c = p.iter().map(|&x| n.dot(x)).sum::<f64>() / p.len() as f64;
+    let flatness = p.iter().map(|&x| (n.dot(x) - c).abs()).fold(0.0, f64::max) + o.tolerance();
+    let mut edges = Vec::with_capacity(p.len());
+    for i in 0..p.len() {
+        let (u, v) = (p[i], p[(i + 1) % p.len()]);
+        let Some(m) = (v - u).cross(n).try_normalize() else {
+            continue;
+        };
+        edges.push((m, m.dot(u)));
+    }
+    Blocker {
+        planes: vec![(n, c)],
+        edges,
+        flatness,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+    use rand_pcg::Pcg64;
+
+    const CELL: (DVec3, DVec3) = (DVec3::ZERO, DVec3::new(1.0, 1.0, 1.0));
+
+    /// An L of two walls around the cell's corner at (2, 3): one along y
+    /// at x in [2, 2.2], one along x at y in [3, 3.2], both tall; `gap`
+    /// opens the corner between them.
+    fn corner(object: u32, gap: f64) -> Vec<Occluder> {
+        vec![
+            Occluder::test_box(
+                object,
+                DVec3::new(2.0, -10.0, -10.0),
+                DVec3::new(2.2, 3.0 - gap, 10.0),
+            ),
+            Occluder::test_box(
+                object,
+                DVec3::new(-10.0, 3.0, -10.0),
+                DVec3::new(2.2, 3.2, 10.0),
+            ),
+        ]
+    }
+
+    fn search<'a>(
+        occluders: &'a [Occluder],
+        skip: &'a (dyn Fn(&Occluder) -> bool + Sync),
+    ) -> Search<'a> {
+        Search {
+            occluders,
+            skip,
+            slack: 1e-5,
+            budget: 1_000_000,
+            depth: 40,
+        }
+    }
+
+    /// Whether the segment `p -> q` meets the inside of box `o`.
+    fn meets(o: &Occluder, p: DVec3, q: DVec3) -> bool {
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        for axis in 0..3 {
+            let d = q[axis] - p[axis];
+            if d == 0.0 {
+                if p[axis] <= o.min[axis] || p[axis] >= o.max[axis] {
+                    return false;
+                }
+                continue;
+            }
+            let (a, b) = ((o.min[axis] - p[axis]) / d, (o.max[axis] - p[axis]) / d);
+            t0 = t0.max(a.min(b));
+            t1 = t1.min(a.max(b));
+        }
+        t0 < t1
+    }
+
+    /// The share of 20,000 random segments from the cell to the box
+    /// `[qmin, qmax]` that no occluder blocks.
+    fn open_share(occluders: &[Occluder], qmin: DVec3, qmax: DVec3) -> f64 {
+        let mut rng = Pcg64::seed_from_u64(7);
+        let mut point = |lo: DVec3, hi: DVec3| {
+            lo + (hi - lo) * DVec3::new(rng.random(), rng.random(), rng.random())
+        };
+        let open = (0..20_000)
+            .filter(|_| {
+                let (p, q) = (point(CELL.0, CELL.1), point(qmin, qmax));
+                !occluders.iter().any(|o| meets(o, p, q))
+            })
+            .count();
+        open as f64 / 20_000.0
+    }
+
+    #[test]
+    fn two_walls_at_right_angles_hide_what_neither_hides_alone() {
+        let walls = corner(1, 0.0);
+        let (qmin, qmax) = (DVec3::new(3.0, 4.0, 0.0), DVec3::new(4.0, 5.0, 1.0));
+        // Rays: every segment is blocked, some by one wall, some by the
+        // other.
+        assert_eq!(open_share(&walls, qmin, qmax), 0.0);
+        for w in 0..2 {
+            assert!(open_share(&walls[w..=w], qmin, qmax) > 0.01);
+        }
+        let no = |_: &Occluder| false;
+        let shafts = Shafts::new(&walls);
+        assert!(shafts.hidden(&search(&walls, &no), 0, &[], CELL, qmin, qmax));
+        // Neither wall alone.
+        for w in 0..2 {
+            let one = &walls[w..=w];
+            let shafts = Shafts::new(one);
+            assert!(!shafts.hidden(&search(one, &no), 0, &[], CELL, qmin, qmax));
+        }
+        // The walls' own object is not hidden by them, and skipped
+        // occluders prove nothing.
+        assert!(!shafts.hidden(&search(&walls, &no), 1, &[], CELL, qmin, qmax));
+        let all = |_: &Occluder| true;
+        assert!(!shafts.hidden(&search(&walls, &all), 0, &[], CELL, qmin, qmax));
+    }
+
+    #[test]
+    fn a_gap_at_the_corner_is_seen_through() {
+        let walls = corner(1, 0.5);
+        let (qmin, qmax) = (DVec3::new(4.0, 4.0, 0.0), DVec3::new(5.0, 5.0, 1.0));
+        assert!(open_share(&walls, qmin, qmax) > 0.0);
+        let no = |_: &Occluder| false;
+        let shafts = Shafts::new(&walls);
+        assert!(!shafts.hidden(&search(&walls, &no), 0, &[], CELL, qmin, qmax));
+    }
+
+    #[test]
+    fn abutting_boxes_hide_across_their_joint() {
+        // One wall in two boxes meeting at y = 0.5, in front of the cell;
+        // an object behind it, seen at a slant across the joint (a segment
+        // crossing the joint in the wall's middle crosses one box or the
+        // other nearer a face; one lying in the joint's plane, which a
+        // view straight through would hold, no single box blocks).
+        let walls = vec![
+            Occluder::test_box(1, DVec3::new(2.0, -10.0, -10.0), DVec3::new(2.2, 0.5, 10.0)),
+            Occluder::test_box(2, DVec3::new(2.0, 0.5, -10.0), DVec3::new(2.2, 10.0, 10.0)),
+        ];
+        let (qmin, qmax) = (DVec3::new(4.0, 3.0, 0.2), DVec3::new(4.5, 4.0, 0.8));
+        assert_eq!(open_share(&walls, qmin, qmax), 0.0);
+        let no = |_: &Occluder| false;
+        let shafts = Shafts::new(&walls);
+        assert!(shafts.hidden(&search(&walls, &no), 0, &[], CELL, qmin, qmax));
+    }
+
+    #[test]
+    fn a_solid_around_both_ends_proves_nothing() {
+        // The cell and the object both inside one solid: no surface
+        // between them.
+        let around = vec![Occluder::test_box(
+            1,
+            DVec3::splat(-1.0),
+            DVec3::splat(10.0),
+        )];
+        let (qmin, qmax) = (DVec3::new(4.0, 0.0, 0.0), DVec3::new(5.0, 1.0, 1.0));
+        let no = |_: &Occluder| false;
+        let shafts = Shafts::new(&around);
+        assert!(!shafts.hidden(&search(&around, &no), 0, &[], CELL, qmin, qmax));
+        // The cell inside, the object beyond it: the segments leave it.
+        let (qmin, qmax) = (DVec3::new(12.0, 0.0, 0.0), DVec3::new(13.0, 1.0, 1.0));
+        assert!(shafts.hidden(&search(&around, &no), 0, &[], CELL, qmin, qmax));
+    }
+
+    #[test]
+    fn a_polygon_blocks_only_what_is_wholly_behind_it() {
+        // A square at x = 2, y and z in [-3, 4], as a polygon occluder.
+        let mut o = Occluder::test_box(1, DVec3::new(2.0, -3.0, -3.0), DVec3::new(2.0, 4.0, 4.0));
+        o.solid = false;
+        o.planes.clear();
+        o.points = vec![
+            DVec3::new(2.0, -3.0, -3.0),
+            DVec3::new(2.0, 4.0, -3.0),
+            DVec3::new(2.0, 4.0, 4.0),
+            DVec3::new(2.0, -3.0, 4.0),
+        ];
+        let polygon = vec![o];
+        let no = |_: &Occluder| false;
+        let shafts = Shafts::new(&polygon);
+        let s = search(&polygon, &no);
+        assert!(shafts.hidden(
+            &s,
+            0,
+            &[],
+            CELL,
+            DVec3::new(3.0, 0.0, 0.0),
+            DVec3::splat(1.0) + DVec3::X * 2.5
+        ));
+        // Reaching through the plane, or past the square's edge.
+        assert!(!shafts.hidden(
+            &s,
+            0,
+            &[],
+            CELL,
+            DVec3::new(1.5, 0.0, 0.0),
+            DVec3::new(3.0, 1.0, 1.0)
+        ));
+        assert!(!shafts.hidden(
+            &s,
+            0,
+            &[],
+            CELL,
+            DVec3::new(3.0, 6.0, 0.0),
+            DVec3::new(4.0, 7.0, 1.0)
+        ));
+    }
+}
