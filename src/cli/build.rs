@@ -205,6 +205,13 @@ pub struct BuildArgs {
     #[arg(long, requires = "conservative", default_value_t = 0,
           value_parser = clap::value_parser!(u8).range(0..=64))]
     sweep_patches: u8,
+    /// With --conservative: the oracle's shafts, at most this many an
+    /// object (`vis5d oracle --shaft-budget`): objects the maps did not
+    /// hide tried one occluder at a time, the cell and the object cut in
+    /// halves [0 (off) to 1,000,000].
+    #[arg(long, requires = "conservative", default_value_t = 0,
+          value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
+    shaft_budget: u32,
     /// With --conservative: rasterise the oracle's Depth Maps on the GPU
     /// (wgpu) where one exists. The bake uses the CPU by default: one map
     /// per submission, the GPU is slower per cell today (notes/oracle.md:
@@ -566,6 +573,7 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
     let oracle_params = OracleParams {
         sweep_planes: args.sweep_planes.into(),
         sweep_patches: args.sweep_patches.into(),
+        shaft_budget: args.shaft_budget as usize,
         ..OracleParams::default()
     };
     let oracle = Oracle::new(&scene, oracle_params, rasteriser)?;

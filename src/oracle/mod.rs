@@ -306,6 +306,8 @@ pub struct Oracle<'a> {
     counts: OccluderCounts,
     hierarchy: BoxTree,
     shafts: oracle_shaft::Shafts,
+    /// Rays for the shafts' witnesses (none when shafts are off).
+    tracer: Option<crate::trace::Tracer>,
     params: OracleParams,
     rasteriser: Rasteriser,
 }
@@ -331,7 +333,8 @@ impl<'a> Oracle<'a> {
             Vec::new()
         };
         let clusters = oracle_clusters::build(scene, params.occludee_depth);
-        let shafts = oracle_shaft::Shafts::new(&occluders);
+        let shafts = oracle_shaft::Shafts::new(&occluders, &solids);
+        let tracer = (params.shaft_budget > 0).then(|| crate::trace::Tracer::new(scene));
         Ok(Self {
             scene,
             occluders,
@@ -341,6 +344,7 @@ impl<'a> Oracle<'a> {
             counts,
             hierarchy: BoxTree::new(&boxes),
             shafts,
+            tracer,
             params,
             rasteriser,
         })
@@ -607,10 +611,10 @@ impl<'a> Oracle<'a> {
         let on_sweeps = |pmin: DVec3, pmax: DVec3| {
             oracle_sweep::sweep_hides(&sweeps, cmin, cmax, pmin, pmax, slack)
         };
-        let skip_parent =
-            |o: &Occluder| parent_hidden.is_some_and(|h| h.contains(o.object as usize));
+        let skip_parent = |object: u32| parent_hidden.is_some_and(|h| h.contains(object as usize));
         let shaft_search = oracle_shaft::Search {
             occluders: &self.occluders,
+            solids: &self.solids,
             skip: &skip_parent,
             slack,
             budget: self.params.shaft_budget,
@@ -662,6 +666,7 @@ impl<'a> Oracle<'a> {
                     }
                 }
                 if self.params.shaft_budget > 0
+                    && !self.witnessed(i, cmin, cmax)
                     && self.shafts.hidden(
                         &shaft_search,
                         i as u32,
@@ -1153,6 +1158,35 @@ impl<'a> Oracle<'a> {
     /// of the size of the scene and the cell together (diagonal plus
     /// largest coordinate). Closer than that, the tracer may report either
     /// hit first (a review found occludees one ulp behind a wall "hit").
+    /// Whether one of a few segments from points of the cell to points of
+    /// object `i`'s surface hits it first: seen, so the shafts need not
+    /// try (a guide that only ever keeps an object). The points are drawn
+    /// from a stream seeded by the cell and the object: the same answer
+    /// whatever the thread count.
+    fn witnessed(&self, i: usize, cmin: DVec3, cmax: DVec3) -> bool {
+        use rand::{RngExt, SeedableRng};
+        let Some(tracer) = &self.tracer else {
+            return false;
+        };
+        let mut seed = 0xcbf2_9ce4_8422_2325u64;
+        for x in [cmin.x, cmin.y, cmin.z, cmax.x, cmax.y, cmax.z] {
+            seed = (seed ^ x.to_bits()).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        seed = (seed ^ i as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        (0..oracle_shaft::WITNESSES).any(|_| {
+            let u = DVec3::new(rng.random(), rng.random(), rng.random());
+            let p = (cmin + (cmax - cmin) * u).as_vec3();
+            let q = self.scene.sample_surface(i, &mut rng);
+            let ray =
+                crate::trace::Ray::segment(p, q).with_tmax(1.0 + crate::sample::SEGMENT_SLACK);
+            ray.is_valid()
+                && tracer
+                    .closest_hit(&ray)
+                    .is_some_and(|h| h.object as usize == i)
+        })
+    }
+
     fn slack(&self, cmin: DVec3, cmax: DVec3) -> f64 {
         let b = self.scene.bounds();
         let (lo, hi) = (b.min.as_dvec3().min(cmin), b.max.as_dvec3().max(cmax));

@@ -41,11 +41,23 @@
 //! boxes are tighter), each half a shaft of its own, until a depth or a
 //! budget of tests runs out: then the object is kept.
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 use super::oracle_clusters::Cluster;
-use super::oracle_occluders::Occluder;
+use super::oracle_occluders::{Occluder, SlicedSolid};
+use super::oracle_project::Frame;
+use super::oracle_slice::slice_segments;
 use crate::geom::{Aabb, BoxNode, BoxTree};
+
+/// How many segments from the cell to an object's surface look for a
+/// witness that it is seen before its shafts are tried (a guide: a seen
+/// object would use up its budget of shafts for nothing).
+pub const WITNESSES: usize = 16;
+
+/// The most occluders met by the segment between two parts' centres that
+/// are tried for one shaft, nearest the cell's part first (a long segment
+/// across a city's terrain meets thousands of its triangles).
+const MET: usize = 64;
 
 /// Where, across a solid's width along one of its face normals, its
 /// blocking planes lie (the middle first).
@@ -71,6 +83,21 @@ struct Blocker {
 pub struct Shafts {
     blockers: Vec<Blocker>,
     tree: BoxTree,
+    /// Per sliceable solid, its cuts by axis-aligned planes.
+    cuts: Vec<Vec<Cut>>,
+    solid_tree: BoxTree,
+}
+
+/// A sliceable solid's cut by the plane `p[axis] = at`: closed loops of
+/// segments in the plane's `(u, v)` (the other two axes in turn), and
+/// their bounding rectangle.
+#[derive(Clone, Debug)]
+struct Cut {
+    axis: usize,
+    at: f64,
+    segments: Vec<[DVec2; 2]>,
+    lo: DVec2,
+    hi: DVec2,
 }
 
 /// A part of an object's box: a box, and the cluster it is, if any.
@@ -85,9 +112,11 @@ struct Part {
 pub struct Search<'a> {
     /// The occluders (as the oracle holds them).
     pub occluders: &'a [Occluder],
-    /// Occluders not to use (their objects proved hidden from a parent
-    /// cell, so `check`'s top-down walk matches the maps').
-    pub skip: &'a (dyn Fn(&Occluder) -> bool + Sync),
+    /// The solids that can be sliced (as the oracle holds them).
+    pub solids: &'a [SlicedSolid],
+    /// Objects whose occluders and solids are not used (proved hidden from
+    /// a parent cell, so `check`'s top-down walk matches the maps').
+    pub skip: &'a (dyn Fn(u32) -> bool + Sync),
     /// The tracer's rounding at the cell's scale.
     pub slack: f64,
     /// The most shafts tested for one object.
@@ -99,12 +128,16 @@ pub struct Search<'a> {
 impl Shafts {
     /// The blocking planes of every occluder and a hierarchy of their
     /// boxes.
-    pub fn new(occluders: &[Occluder]) -> Self {
+    pub fn new(occluders: &[Occluder], solids: &[SlicedSolid]) -> Self {
         let blockers = occluders.iter().map(blocker).collect();
         let boxes: Vec<Aabb> = occluders.iter().map(|o| outward(o.min, o.max)).collect();
+        let cuts = solids.iter().map(solid_cuts).collect();
+        let solid_boxes: Vec<Aabb> = solids.iter().map(|s| outward(s.min, s.max)).collect();
         Self {
             blockers,
             tree: BoxTree::new(&boxes),
+            cuts,
+            solid_tree: BoxTree::new(&solid_boxes),
         }
     }
 
@@ -128,18 +161,7 @@ impl Shafts {
         };
         let mut budget = search.budget;
         let mut hint = None;
-        let mut near = Vec::new();
-        self.shaft(
-            search,
-            object,
-            clusters,
-            cell,
-            b,
-            0,
-            &mut budget,
-            &mut hint,
-            &mut near,
-        )
+        self.shaft(search, object, clusters, cell, b, 0, &mut budget, &mut hint)
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -153,7 +175,6 @@ impl Shafts {
         depth: usize,
         budget: &mut usize,
         hint: &mut Option<usize>,
-        near: &mut Vec<u32>,
     ) -> bool {
         if *budget == 0 {
             return false;
@@ -164,29 +185,68 @@ impl Shafts {
         if bmin.cmple(a.1).all() && bmax.cmpge(a.0).all() {
             return false;
         }
-        if let Some(k) = *hint
-            && self.blocks(search, k, a, (bmin, bmax))
-        {
-            return true;
+        if let Some(k) = *hint {
+            let blocked = match k.checked_sub(search.occluders.len()) {
+                None => self.blocks(search, k, a, (bmin, bmax)),
+                Some(solid) => self.cuts_block(search, solid, a, (bmin, bmax)),
+            };
+            if blocked {
+                return true;
+            }
         }
         // An occluder blocking every segment blocks the one between the
         // boxes' centres: only those meeting it are tried. None: that
         // segment is in some part of every cut, which nothing can block.
-        near.clear();
         let (p, q) = (0.5 * (a.0 + a.1), 0.5 * (bmin + bmax));
-        self.along(p, q, near);
         let mut any = false;
-        for &k in near.iter() {
-            let k = k as usize;
+        let tried = *hint;
+        let mut met = 0;
+        let mut occluder = |t: u32| {
+            let k = t as usize;
             let o = &search.occluders[k];
-            if o.object == object || (search.skip)(o) || !meets(o, p, q) {
-                continue;
+            if o.object == object || (search.skip)(o.object) || !meets(o, p, q) {
+                return false;
             }
             any = true;
-            if Some(k) != *hint && self.blocks(search, k, a, (bmin, bmax)) {
-                *hint = Some(k);
+            met += 1;
+            if met > MET {
                 return true;
             }
+            Some(k) != tried && self.blocks(search, k, a, (bmin, bmax))
+        };
+        let mut found = None;
+        if along_until(&self.tree, p, q, &mut |t| {
+            let hit = occluder(t);
+            if hit {
+                found = Some(t as usize);
+            }
+            hit
+        }) && met <= MET
+        {
+            *hint = found;
+            return true;
+        }
+        // Sliceable solids (closed, or open only at the bottom, not
+        // convex) along the same segment, by their cuts.
+        let offset = search.occluders.len();
+        let mut solid_found = None;
+        if along_until(&self.solid_tree, p, q, &mut |k| {
+            let k = k as usize;
+            let Some(solid) = search.solids.get(k) else {
+                return false;
+            };
+            if solid.object == object || (search.skip)(solid.object) {
+                return false;
+            }
+            any = true;
+            let hit = Some(offset + k) != tried && self.cuts_block(search, k, a, (bmin, bmax));
+            if hit {
+                solid_found = Some(offset + k);
+            }
+            hit
+        }) {
+            *hint = solid_found;
+            return true;
         }
         if !any || depth >= search.depth {
             return false;
@@ -216,7 +276,6 @@ impl Shafts {
                 depth + 1,
                 budget,
                 hint,
-                near,
             ) && self.shaft(
                 search,
                 object,
@@ -226,7 +285,6 @@ impl Shafts {
                 depth + 1,
                 budget,
                 hint,
-                near,
             )
         } else {
             let halves = match b.cluster.and_then(|k| clusters[k as usize].children) {
@@ -260,61 +318,36 @@ impl Shafts {
                     ]
                 }
             };
-            halves.iter().all(|&h| {
-                self.shaft(
-                    search,
-                    object,
-                    clusters,
-                    a,
-                    h,
-                    depth + 1,
-                    budget,
-                    hint,
-                    near,
-                )
-            })
+            halves
+                .iter()
+                .all(|&h| self.shaft(search, object, clusters, a, h, depth + 1, budget, hint))
         }
     }
 
-    /// Appends to `out` the occluders whose boxes (rounded outwards) the
-    /// segment `p -> q` meets.
-    fn along(&self, p: DVec3, q: DVec3, out: &mut Vec<u32>) {
-        let nodes = self.tree.nodes();
-        if nodes.is_empty() {
-            return;
+    /// Whether a cut of sliceable solid `k` blocks every segment from box
+    /// `a` to box `b`: the plane separates them, the rectangle of the
+    /// crossings (of the 64 corner segments: the crossing coordinates are
+    /// monotone in each end's) lies inside the cut's loops by the slack
+    /// (no loop segment comes near it, its centre inside by the even-odd
+    /// rule), one end is apart from the solid, and, for a solid open at
+    /// the bottom, both boxes lie above its floor (a segment between
+    /// points above it cannot pass through the missing floor).
+    fn cuts_block(&self, search: &Search, k: usize, a: (DVec3, DVec3), b: (DVec3, DVec3)) -> bool {
+        let solid = &search.solids[k];
+        let slack = search.slack;
+        if let Some(floor) = solid.open_bottom
+            && (a.0.z <= floor + slack || b.0.z <= floor + slack)
+        {
+            return false;
         }
-        let d = q - p;
-        let inv = DVec3::ONE / d;
-        let hit = |b: &Aabb| {
-            let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
-            let (mut t0, mut t1) = (0.0f64, 1.0f64);
-            for axis in 0..3 {
-                if d[axis] == 0.0 {
-                    if p[axis] < lo[axis] || p[axis] > hi[axis] {
-                        return false;
-                    }
-                    continue;
-                }
-                let (u, v) = (
-                    (lo[axis] - p[axis]) * inv[axis],
-                    (hi[axis] - p[axis]) * inv[axis],
-                );
-                t0 = t0.max(u.min(v));
-                t1 = t1.min(u.max(v));
-            }
-            t0 <= t1
+        let pad = DVec3::splat(slack);
+        let apart = |(lo, hi): (DVec3, DVec3)| {
+            hi.cmplt(solid.min - pad).any() || lo.cmpgt(solid.max + pad).any()
         };
-        let mut stack = vec![0u32];
-        while let Some(k) = stack.pop() {
-            let node = &nodes[k as usize];
-            if !hit(node.bounds()) {
-                continue;
-            }
-            match node {
-                BoxNode::Object { object, .. } => out.push(*object),
-                BoxNode::Inner { children, .. } => stack.extend_from_slice(children),
-            }
+        if !apart(a) && !apart(b) {
+            return false;
         }
+        self.cuts[k].iter().any(|cut| cut_holds(cut, a, b, slack))
     }
 
     /// Whether occluder `k` blocks every segment from box `a` to box `b`.
@@ -333,6 +366,66 @@ impl Shafts {
             .iter()
             .any(|&(n, c)| crossings_inside(o, blocker, n, c, a, b, slack))
     }
+}
+
+/// Visits the items of `tree` whose boxes the segment `p -> q` meets,
+/// nearest to `p` first (by where the segment enters their nodes), until
+/// `visit` returns true; returns whether it did. A guide for the shafts:
+/// the boxes are tested in f64 from their f32 corners, no slack.
+fn along_until(tree: &BoxTree, p: DVec3, q: DVec3, visit: &mut dyn FnMut(u32) -> bool) -> bool {
+    let nodes = tree.nodes();
+    if nodes.is_empty() {
+        return false;
+    }
+    let d = q - p;
+    let inv = DVec3::ONE / d;
+    let enter = |b: &Aabb| -> Option<f64> {
+        let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        for axis in 0..3 {
+            if d[axis] == 0.0 {
+                if p[axis] < lo[axis] || p[axis] > hi[axis] {
+                    return None;
+                }
+                continue;
+            }
+            let (u, v) = (
+                (lo[axis] - p[axis]) * inv[axis],
+                (hi[axis] - p[axis]) * inv[axis],
+            );
+            t0 = t0.max(u.min(v));
+            t1 = t1.min(u.max(v));
+        }
+        (t0 <= t1).then_some(t0)
+    };
+    if enter(nodes[0].bounds()).is_none() {
+        return false;
+    }
+    let mut stack = Vec::with_capacity(64);
+    stack.push(0u32);
+    while let Some(k) = stack.pop() {
+        match &nodes[k as usize] {
+            BoxNode::Object { object, .. } => {
+                if visit(*object) {
+                    return true;
+                }
+            }
+            BoxNode::Inner { children, .. } => {
+                let [a, b] = children.map(|c| (enter(nodes[c as usize].bounds()), c));
+                match (a.0, b.0) {
+                    (Some(ta), Some(tb)) => {
+                        let (near, far) = if ta <= tb { (a.1, b.1) } else { (b.1, a.1) };
+                        stack.push(far);
+                        stack.push(near);
+                    }
+                    (Some(_), None) => stack.push(a.1),
+                    (None, Some(_)) => stack.push(b.1),
+                    (None, None) => {}
+                }
+            }
+        }
+    }
+    false
 }
 
 /// Whether the plane `n . p = c` separates boxes `a` and `b` (by more than
@@ -357,16 +450,7 @@ fn crossings_inside(
     if !separated {
         return false;
     }
-    let corners = |(lo, hi): (DVec3, DVec3)| -> [DVec3; 8] {
-        std::array::from_fn(|i| {
-            DVec3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            )
-        })
-    };
-    let (ca, cb) = (corners(a), corners(b));
+    let (ca, cb) = (box_corners(a), box_corners(b));
     let solid_margin = slack + 16.0 * o.tolerance();
     for &p in &ca {
         let sp = n.dot(p) - c;
@@ -431,6 +515,122 @@ fn meets(o: &Occluder, p: DVec3, q: DVec3) -> bool {
         })
         .collect();
     sides.iter().all(|&s| s >= 0.0) || sides.iter().all(|&s| s <= 0.0)
+}
+
+/// Whether every segment from box `a` to box `b` crosses `cut`'s plane
+/// inside its loops (by `slack`).
+fn cut_holds(cut: &Cut, a: (DVec3, DVec3), b: (DVec3, DVec3), slack: f64) -> bool {
+    let k = cut.axis;
+    let (c, u, v) = (cut.at, (k + 1) % 3, (k + 2) % 3);
+    let separated =
+        (a.1[k] < c - slack && b.0[k] > c + slack) || (b.1[k] < c - slack && a.0[k] > c + slack);
+    if !separated {
+        return false;
+    }
+    let (ca, cb) = (box_corners(a), box_corners(b));
+    let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
+    for &p in &ca {
+        for &q in &cb {
+            let t = (c - p[k]) / (q[k] - p[k]);
+            let x = p + (q - p) * t;
+            let x = DVec2::new(x[u], x[v]);
+            lo = lo.min(x);
+            hi = hi.max(x);
+        }
+    }
+    let (lo, hi) = (lo - slack, hi + slack);
+    if lo.cmplt(cut.lo).any() || hi.cmpgt(cut.hi).any() {
+        return false;
+    }
+    // No loop segment meets the rectangle.
+    for &[p, q] in &cut.segments {
+        if p.x.max(q.x) < lo.x || p.x.min(q.x) > hi.x || p.y.max(q.y) < lo.y || p.y.min(q.y) > hi.y
+        {
+            continue;
+        }
+        if segment_meets_rect(p, q, lo, hi) {
+            return false;
+        }
+    }
+    // Wholly inside or wholly outside: the centre decides (even-odd).
+    let m = 0.5 * (lo + hi);
+    let mut inside = false;
+    for &[p, q] in &cut.segments {
+        if (p.y > m.y) != (q.y > m.y) {
+            let x = p.x + (m.y - p.y) * (q.x - p.x) / (q.y - p.y);
+            if x > m.x {
+                inside = !inside;
+            }
+        }
+    }
+    inside
+}
+
+/// Whether the segment `p -> q` meets the closed rectangle `[lo, hi]`.
+fn segment_meets_rect(p: DVec2, q: DVec2, lo: DVec2, hi: DVec2) -> bool {
+    let d = q - p;
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for axis in 0..2 {
+        if d[axis] == 0.0 {
+            if p[axis] < lo[axis] || p[axis] > hi[axis] {
+                return false;
+            }
+            continue;
+        }
+        let (s, e) = (
+            (lo[axis] - p[axis]) / d[axis],
+            (hi[axis] - p[axis]) / d[axis],
+        );
+        t0 = t0.max(s.min(e));
+        t1 = t1.min(s.max(e));
+        if t0 > t1 {
+            return false;
+        }
+    }
+    true
+}
+
+/// The 8 corners of a box.
+fn box_corners((lo, hi): (DVec3, DVec3)) -> [DVec3; 8] {
+    std::array::from_fn(|i| {
+        DVec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    })
+}
+
+/// A sliceable solid's cuts: along each axis, at the middle and near both
+/// sides (those that close).
+fn solid_cuts(solid: &SlicedSolid) -> Vec<Cut> {
+    let mut out = Vec::new();
+    for axis in 0..3 {
+        let frame = Frame {
+            axis,
+            positive: true,
+        };
+        for f in DEPTHS {
+            let at = solid.min[axis] + f * (solid.max[axis] - solid.min[axis]);
+            let Some(segments) = slice_segments(solid, frame, at) else {
+                continue;
+            };
+            let (lo, hi) = segments
+                .iter()
+                .flatten()
+                .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(a, b), &p| {
+                    (a.min(p), b.max(p))
+                });
+            out.push(Cut {
+                axis,
+                at,
+                segments,
+                lo,
+                hi,
+            });
+        }
+    }
+    out
 }
 
 /// The index of the longest side.
@@ -545,12 +745,10 @@ mod tests {
         ]
     }
 
-    fn search<'a>(
-        occluders: &'a [Occluder],
-        skip: &'a (dyn Fn(&Occluder) -> bool + Sync),
-    ) -> Search<'a> {
+    fn search<'a>(occluders: &'a [Occluder], skip: &'a (dyn Fn(u32) -> bool + Sync)) -> Search<'a> {
         Search {
             occluders,
+            solids: &[],
             skip,
             slack: 1e-5,
             budget: 1_000_000,
@@ -602,19 +800,19 @@ mod tests {
         for w in 0..2 {
             assert!(open_share(&walls[w..=w], qmin, qmax) > 0.01);
         }
-        let no = |_: &Occluder| false;
-        let shafts = Shafts::new(&walls);
+        let no = |_: u32| false;
+        let shafts = Shafts::new(&walls, &[]);
         assert!(shafts.hidden(&search(&walls, &no), 0, &[], CELL, qmin, qmax));
         // Neither wall alone.
         for w in 0..2 {
             let one = &walls[w..=w];
-            let shafts = Shafts::new(one);
+            let shafts = Shafts::new(one, &[]);
             assert!(!shafts.hidden(&search(one, &no), 0, &[], CELL, qmin, qmax));
         }
         // The walls' own object is not hidden by them, and skipped
         // occluders prove nothing.
         assert!(!shafts.hidden(&search(&walls, &no), 1, &[], CELL, qmin, qmax));
-        let all = |_: &Occluder| true;
+        let all = |_: u32| true;
         assert!(!shafts.hidden(&search(&walls, &all), 0, &[], CELL, qmin, qmax));
     }
 
@@ -623,8 +821,8 @@ mod tests {
         let walls = corner(1, 0.5);
         let (qmin, qmax) = (DVec3::new(4.0, 4.0, 0.0), DVec3::new(5.0, 5.0, 1.0));
         assert!(open_share(&walls, qmin, qmax) > 0.0);
-        let no = |_: &Occluder| false;
-        let shafts = Shafts::new(&walls);
+        let no = |_: u32| false;
+        let shafts = Shafts::new(&walls, &[]);
         assert!(!shafts.hidden(&search(&walls, &no), 0, &[], CELL, qmin, qmax));
     }
 
@@ -641,8 +839,8 @@ mod tests {
         ];
         let (qmin, qmax) = (DVec3::new(4.0, 3.0, 0.2), DVec3::new(4.5, 4.0, 0.8));
         assert_eq!(open_share(&walls, qmin, qmax), 0.0);
-        let no = |_: &Occluder| false;
-        let shafts = Shafts::new(&walls);
+        let no = |_: u32| false;
+        let shafts = Shafts::new(&walls, &[]);
         assert!(shafts.hidden(&search(&walls, &no), 0, &[], CELL, qmin, qmax));
     }
 
@@ -656,8 +854,8 @@ mod tests {
             DVec3::splat(10.0),
         )];
         let (qmin, qmax) = (DVec3::new(4.0, 0.0, 0.0), DVec3::new(5.0, 1.0, 1.0));
-        let no = |_: &Occluder| false;
-        let shafts = Shafts::new(&around);
+        let no = |_: u32| false;
+        let shafts = Shafts::new(&around, &[]);
         assert!(!shafts.hidden(&search(&around, &no), 0, &[], CELL, qmin, qmax));
         // The cell inside, the object beyond it: the segments leave it.
         let (qmin, qmax) = (DVec3::new(12.0, 0.0, 0.0), DVec3::new(13.0, 1.0, 1.0));
@@ -677,8 +875,8 @@ mod tests {
             DVec3::new(2.0, -3.0, 4.0),
         ];
         let polygon = vec![o];
-        let no = |_: &Occluder| false;
-        let shafts = Shafts::new(&polygon);
+        let no = |_: u32| false;
+        let shafts = Shafts::new(&polygon, &[]);
         let s = search(&polygon, &no);
         assert!(shafts.hidden(
             &s,
@@ -705,5 +903,98 @@ mod tests {
             DVec3::new(3.0, 6.0, 0.0),
             DVec3::new(4.0, 7.0, 1.0)
         ));
+    }
+
+    /// A floorless L-shaped prism (one mesh: a sliceable solid, not
+    /// convex; footprint (0,0) (3,0) (3,1) (1,1) (1,3) (0,3), height 2)
+    /// and a small box beyond its outer corner.
+    fn l_prism_scene() -> crate::scene::Scene {
+        use crate::scene::procedural::shapes::push_box;
+        use crate::scene::{SceneBuilder, SceneFormat};
+        use glam::Vec3;
+        let f = [
+            (0.0, 0.0),
+            (3.0, 0.0),
+            (3.0, 1.0),
+            (1.0, 1.0),
+            (1.0, 3.0),
+            (0.0, 3.0),
+        ];
+        let p = |k: usize, z: f32| Vec3::new(f[k % 6].0, f[k % 6].1, z);
+        let r = |x: f32, y: f32| Vec3::new(x, y, 2.0);
+        let mut b = SceneBuilder::new(SceneFormat::Procedural);
+        b.begin_object("l");
+        for k in 0..6 {
+            b.push_triangle([p(k, 0.0), p(k + 1, 0.0), p(k + 1, 2.0)])
+                .unwrap();
+            b.push_triangle([p(k, 0.0), p(k + 1, 2.0), p(k, 2.0)])
+                .unwrap();
+        }
+        for t in [
+            [r(1.0, 1.0), r(1.0, 3.0), r(0.0, 3.0)],
+            [r(1.0, 1.0), r(0.0, 3.0), r(0.0, 0.0)],
+            [r(1.0, 1.0), r(0.0, 0.0), r(3.0, 0.0)],
+            [r(1.0, 1.0), r(3.0, 0.0), r(3.0, 1.0)],
+        ] {
+            b.push_triangle(t).unwrap();
+        }
+        b.begin_object("box");
+        let mut tris = Vec::new();
+        push_box(
+            &mut tris,
+            Vec3::new(-2.0, -2.0, 0.5),
+            Vec3::new(-1.5, -1.5, 1.0),
+        );
+        for t in tris {
+            b.push_triangle(t).unwrap();
+        }
+        b.finish(std::path::Path::new("l")).unwrap()
+    }
+
+    #[test]
+    fn a_concave_solid_hides_behind_its_corner_by_its_cuts() {
+        use crate::oracle::oracle_occluders::extract;
+        use crate::trace::{Ray, Tracer};
+        let scene = l_prism_scene();
+        let found = extract(&scene);
+        // The L (and the closed box).
+        assert_eq!(found.solids.len(), 2);
+        assert_eq!(found.solids[0].open_bottom, Some(0.0));
+        assert_eq!(found.solids[0].object, 0);
+        // The cell in the L's notch, above the missing floor.
+        let cell = (DVec3::new(2.0, 2.0, 0.5), DVec3::new(2.5, 2.5, 1.0));
+        let (qmin, qmax) = (DVec3::new(-2.0, -2.0, 0.5), DVec3::new(-1.5, -1.5, 1.0));
+        // Rays: every segment from the cell to the box hits the L first.
+        let tracer = Tracer::new(&scene);
+        let mut rng = Pcg64::seed_from_u64(3);
+        let rays: Vec<Ray> = (0..20_000)
+            .map(|_| {
+                let u = DVec3::new(rng.random(), rng.random(), rng.random());
+                let a = cell.0 + (cell.1 - cell.0) * u;
+                Ray::segment(a.as_vec3(), scene.sample_surface(1, &mut rng))
+            })
+            .collect();
+        assert!(
+            tracer
+                .closest_hits(&rays)
+                .iter()
+                .all(|h| h.is_some_and(|h| h.object == 0))
+        );
+        let no = |_: u32| false;
+        let with_cuts = Search {
+            solids: &found.solids,
+            ..search(&found.occluders, &no)
+        };
+        let shafts = Shafts::new(&found.occluders, &found.solids);
+        assert!(shafts.hidden(&with_cuts, 1, &[], cell, qmin, qmax));
+        // Its faces alone (convex polygons) leave the segments through the
+        // outer corner's edge, which lies on two of them.
+        let faces = Shafts::new(&found.occluders, &[]);
+        assert!(!faces.hidden(&search(&found.occluders, &no), 1, &[], cell, qmin, qmax));
+        // Below the missing floor the cuts prove nothing.
+        let low = (DVec3::new(2.0, 2.0, -1.0), DVec3::new(2.5, 2.5, 1.0));
+        assert!(!shafts.hidden(&with_cuts, 1, &[], low, qmin, qmax));
+        // Nor for the L itself.
+        assert!(!shafts.hidden(&with_cuts, 0, &[], cell, qmin, qmax));
     }
 }
