@@ -27,9 +27,14 @@
 //!   tracer's rounding), and the crossings must lie inside `O` by that
 //!   rounding plus its convexity tolerance.
 //! - `O` a planar convex polygon: `P` is its plane and the crossing is on
-//!   it, inside it by the rounding plus the polygon's flatness tolerance
-//!   over the sine of the segment's angle to the plane (a segment grazing
-//!   a slightly bent polygon crosses its triangles away from `P`'s point).
+//!   it, inside it by the rounding plus the polygon's flatness tolerance,
+//!   over the smallest sine of a segment's angle to the plane: a grazing
+//!   ray moved by the tracer's rounding, or a slightly bent polygon,
+//!   crosses far from `P`'s point along the plane (a review found rays
+//!   at a thousandth of a radian past a triangle's edge that the rounding
+//!   alone, not divided, had hidden).
+//! - the cuts of a sliceable solid likewise: the rectangle of the
+//!   crossings grown by the rounding over that sine.
 //! - `O` of the object itself is no proof (a hit on it is the object
 //!   seen), so an object's own occluders are skipped.
 //!
@@ -451,18 +456,25 @@ fn crossings_inside(
         return false;
     }
     let (ca, cb) = (box_corners(a), box_corners(b));
-    let solid_margin = slack + 16.0 * o.tolerance();
+    // A polygon's margin: the tracer's rounding moves a ray by up to the
+    // slack across its line, and a bent polygon's triangles lie up to its
+    // flatness off the plane; along the plane either moves the crossing by
+    // that over the sine of the ray's angle to it (at its smallest over
+    // the shaft at a corner pair: the share of a direction along the
+    // normal is quasi-concave over the box of directions `B - A`).
+    let margin = if o.solid {
+        slack + 16.0 * o.tolerance()
+    } else {
+        (slack + blocker.flatness) / min_sine(n, &ca, &cb)
+    };
     for &p in &ca {
         let sp = n.dot(p) - c;
         for &q in &cb {
             let sq = n.dot(q) - c;
             let x = p + (q - p) * (sp / (sp - sq));
             let inside = if o.solid {
-                o.planes.iter().all(|&(m, d)| m.dot(x) <= d - solid_margin)
+                o.planes.iter().all(|&(m, d)| m.dot(x) <= d - margin)
             } else {
-                // The sine of the segment's angle to the plane.
-                let sine = (sp - sq).abs() / (q - p).length();
-                let margin = slack + blocker.flatness / sine;
                 blocker.edges.iter().all(|&(m, e)| m.dot(x) <= e - margin)
             };
             if !inside {
@@ -471,6 +483,19 @@ fn crossings_inside(
         }
     }
     true
+}
+
+/// The smallest sine of the angle between the plane of normal `n` (a unit
+/// vector) and a segment from a corner of `ca` to one of `cb`.
+fn min_sine(n: DVec3, ca: &[DVec3; 8], cb: &[DVec3; 8]) -> f64 {
+    let mut sine = f64::INFINITY;
+    for &p in ca {
+        for &q in cb {
+            let d = q - p;
+            sine = sine.min(n.dot(d).abs() / d.length());
+        }
+    }
+    sine
 }
 
 /// Whether the segment `p -> q` meets occluder `o` (a solid's inside, a
@@ -538,7 +563,12 @@ fn cut_holds(cut: &Cut, a: (DVec3, DVec3), b: (DVec3, DVec3), slack: f64) -> boo
             hi = hi.max(x);
         }
     }
-    let (lo, hi) = (lo - slack, hi + slack);
+    // The tracer's rounding moves a ray's crossing along the plane by up to
+    // the slack over the sine of its angle to the plane.
+    let mut n = DVec3::ZERO;
+    n[k] = 1.0;
+    let grow = slack / min_sine(n, &ca, &cb);
+    let (lo, hi) = (lo - grow, hi + grow);
     if lo.cmplt(cut.lo).any() || hi.cmpgt(cut.hi).any() {
         return false;
     }
