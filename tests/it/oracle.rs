@@ -819,3 +819,40 @@ fn grazing_rays_past_a_triangle_keep_what_is_behind_it() {
         assert!(oracle.cell(&cell, None).visible.contains(1));
     }
 }
+
+/// The same review's case for the Depth Maps (older than the shafts): a
+/// triangle seen nearly edge-on from 200 m, a 2 mm box just past it. The
+/// exact segments cross the triangle, the tracer's rays pass outside it
+/// (the rounding over the sine of the grazing angle): the maps draw each
+/// polygon inset by that.
+#[test]
+fn the_maps_keep_what_grazing_rays_see_past_a_triangle() {
+    let triangle = [
+        Vec3::new(1.3740398, 7.9293003, 10.031703),
+        Vec3::new(1.38339, 7.1812134, -9.954299),
+        Vec3::new(1.4285, -12.430685, 0.78680986),
+    ];
+    let object = boxed(
+        Vec3::new(1.3705349, 8.028803, 0.019936096),
+        Vec3::new(1.372535, 8.030804, 0.021936096),
+    );
+    let scene = scene_of(vec![vec![triangle], object]);
+    let cell = Aabb::new(
+        Vec3::new(3.8770337, -192.48901, 7.527639),
+        Vec3::new(3.9770336, -192.389, 7.627639),
+    );
+    let tracer = Tracer::new(&scene);
+    let witness = Ray::new(
+        Vec3::new(3.9770336, -192.389, 7.627639),
+        Vec3::new(-2.6044986, 200.41982, -7.6077027),
+    );
+    assert_eq!(tracer.closest_hit(&witness).map(|h| h.object), Some(1));
+    for shafts in [0, 512] {
+        let params = OracleParams {
+            shaft_budget: shafts,
+            ..OracleParams::default()
+        };
+        let oracle = Oracle::new(&scene, params, Rasteriser::cpu()).unwrap();
+        assert!(oracle.cell(&cell, None).visible.contains(1));
+    }
+}
