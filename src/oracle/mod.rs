@@ -305,7 +305,8 @@ pub struct Oracle<'a> {
     clusters: Vec<Vec<oracle_clusters::Cluster>>,
     counts: OccluderCounts,
     hierarchy: BoxTree,
-    shafts: oracle_shaft::Shafts,
+    /// The shafts' view of the occluders (none when shafts are off).
+    shafts: Option<oracle_shaft::Shafts>,
     /// Rays for the shafts' witnesses (none when shafts are off).
     tracer: Option<crate::trace::Tracer>,
     params: OracleParams,
@@ -333,7 +334,8 @@ impl<'a> Oracle<'a> {
             Vec::new()
         };
         let clusters = oracle_clusters::build(scene, params.occludee_depth);
-        let shafts = oracle_shaft::Shafts::new(&occluders, &solids);
+        let shafts =
+            (params.shaft_budget > 0).then(|| oracle_shaft::Shafts::new(&occluders, &solids));
         let tracer = (params.shaft_budget > 0).then(|| crate::trace::Tracer::new(scene));
         Ok(Self {
             scene,
@@ -665,9 +667,9 @@ impl<'a> Oracle<'a> {
                         return 4;
                     }
                 }
-                if self.params.shaft_budget > 0
+                if let Some(shafts) = &self.shafts
                     && !self.witnessed(i, cmin, cmax)
-                    && self.shafts.hidden(
+                    && shafts.hidden(
                         &shaft_search,
                         i as u32,
                         &self.clusters[i],
