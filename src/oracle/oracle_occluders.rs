@@ -73,15 +73,7 @@ impl Occluder {
     /// The box `[a, b]` as a closed convex solid of `object` (tests).
     #[cfg(test)]
     pub(crate) fn test_box(object: u32, a: DVec3, b: DVec3) -> Self {
-        let points = (0..8)
-            .map(|i| {
-                DVec3::new(
-                    if i & 1 == 0 { a.x } else { b.x },
-                    if i & 2 == 0 { a.y } else { b.y },
-                    if i & 4 == 0 { a.z } else { b.z },
-                )
-            })
-            .collect();
+        let points = super::oracle_project::corners(a, b).to_vec();
         let mut o = Self::new(object, points, true);
         for axis in 0..3 {
             let mut n = DVec3::ZERO;

@@ -50,7 +50,7 @@ use glam::{DVec2, DVec3};
 
 use super::oracle_clusters::Cluster;
 use super::oracle_occluders::{Occluder, SlicedSolid};
-use super::oracle_project::Frame;
+use super::oracle_project::{Frame, corners};
 use super::oracle_slice::slice_segments;
 use crate::geom::{Aabb, BoxNode, BoxTree};
 
@@ -455,7 +455,7 @@ fn crossings_inside(
     if !separated {
         return false;
     }
-    let (ca, cb) = (box_corners(a), box_corners(b));
+    let (ca, cb) = (corners(a.0, a.1), corners(b.0, b.1));
     // A polygon's margin: the tracer's rounding moves a ray by up to the
     // slack across its line, and a bent polygon's triangles lie up to its
     // flatness off the plane; along the plane either moves the crossing by
@@ -552,7 +552,7 @@ fn cut_holds(cut: &Cut, a: (DVec3, DVec3), b: (DVec3, DVec3), slack: f64) -> boo
     if !separated {
         return false;
     }
-    let (ca, cb) = (box_corners(a), box_corners(b));
+    let (ca, cb) = (corners(a.0, a.1), corners(b.0, b.1));
     let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
     for &p in &ca {
         for &q in &cb {
@@ -618,17 +618,6 @@ fn segment_meets_rect(p: DVec2, q: DVec2, lo: DVec2, hi: DVec2) -> bool {
         }
     }
     true
-}
-
-/// The 8 corners of a box.
-fn box_corners((lo, hi): (DVec3, DVec3)) -> [DVec3; 8] {
-    std::array::from_fn(|i| {
-        DVec3::new(
-            if i & 1 == 0 { lo.x } else { hi.x },
-            if i & 2 == 0 { lo.y } else { hi.y },
-            if i & 4 == 0 { lo.z } else { hi.z },
-        )
-    })
 }
 
 /// A sliceable solid's cuts: along each axis, at the middle and near both
