@@ -30,6 +30,9 @@
 //! runs the oracle on K x K sub-cells (cut in x and y) as well, each with
 //! the whole cell's hidden objects taken as hidden, and reports their
 //! union (still conservative: it is how much smaller cells would gain).
+//! `--method shrink` runs the occluder-shrinking oracle (papers/004)
+//! instead, `both` keeps what neither proves hidden (its time is the sum);
+//! `--split` applies to the extended projections only.
 //!
 //! ```text
 //! cargo run --release --example street_cells -- scenes/city.obj 20 4
@@ -46,9 +49,10 @@ use vis5d::oracle::{Oracle, OracleParams, Rasteriser};
 use vis5d::random::{uniform_direction, uniform_point};
 use vis5d::sample::SEGMENT_SLACK;
 use vis5d::scene::Scene;
+use vis5d::shrink::{ShrinkOracle, ShrinkParams};
 use vis5d::trace::{Ray, Tracer};
 
-const USAGE: &str = "usage: street_cells MODEL CELLS SIZE [--height H] [--rooms] [--anywhere] [--rays N] [--aimed N] [--split K]\n  [--seed S] [--gpu] [--list]\n  [--sweep-planes N] [--sweep-patches N] [--sweep-extension X]\n  [--occludee-depth N] [--shaft-budget N] [--shaft-depth N]";
+const USAGE: &str = "usage: street_cells MODEL CELLS SIZE [--height H] [--rooms] [--anywhere] [--rays N] [--aimed N] [--split K]\n  [--seed S] [--gpu] [--list] [--method extended|shrink|both]\n  [--sweep-planes N] [--sweep-patches N] [--sweep-extension X]\n  [--occludee-depth N] [--shaft-budget N] [--shaft-depth N]";
 
 /// The command line.
 struct Args {
@@ -65,6 +69,7 @@ struct Args {
     gpu: bool,
     list: bool,
     params: OracleParams,
+    method: String,
 }
 
 fn parse() -> Result<Args, String> {
@@ -84,6 +89,7 @@ fn parse() -> Result<Args, String> {
         gpu: false,
         list: false,
         params: OracleParams::default(),
+        method: "extended".into(),
     };
     let mut it = raw.into_iter();
     while let Some(a) = it.next() {
@@ -143,6 +149,12 @@ fn parse() -> Result<Args, String> {
                 args.params.shaft_depth = value("--shaft-depth")?
                     .parse()
                     .map_err(|_| "--shaft-depth must be a count")?
+            }
+            "--method" => {
+                args.method = value("--method")?;
+                if !["extended", "shrink", "both"].contains(&args.method.as_str()) {
+                    return Err("--method must be extended, shrink or both".into());
+                }
             }
             "--rooms" => args.rooms = true,
             "--anywhere" => args.anywhere = true,
@@ -260,6 +272,13 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
+    let shrink = match ShrinkOracle::new(&scene, ShrinkParams::default()) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
     let triangles: usize = scene.objects().iter().map(|o| o.triangle_count()).sum();
     // Cells from one stream, rays from another: the same cells whatever
     // the ray counts.
@@ -287,7 +306,25 @@ fn main() -> ExitCode {
         let Some(cell) = pick_cell(&scene, &tracer, &args, &mut cells_rng) else {
             continue;
         };
-        let mut report = oracle.cell(&cell, None);
+        let mut report = if args.method == "shrink" {
+            // Only the shrinking's set and times, below.
+            let mut r = oracle.cell(&Aabb::new(Vec3::NAN, Vec3::NAN), None);
+            r.times = Default::default();
+            r
+        } else {
+            oracle.cell(&cell, None)
+        };
+        if args.method != "extended" {
+            let s = shrink.cell(&cell);
+            if args.method == "shrink" {
+                report.visible = s.visible;
+            } else {
+                report.visible.intersect_with(&s.visible);
+            }
+            report.times.select += s.times.shrink;
+            report.times.rasterise += s.times.rasterise;
+            report.times.test += s.times.test;
+        }
         if args.split > 1 {
             let mut hidden = vis5d::bitset::ObjectSet::full(scene.objects().len());
             hidden.subtract(&report.visible);

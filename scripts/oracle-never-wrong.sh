@@ -7,14 +7,17 @@
 # run that prints its mean line found no violation. Cells: street cells
 # (6 x 6 x 2 m, cities), room cells (3 x 3 x 2 m, buildings) and cells
 # anywhere in the scene's box (geometry in them or not, 4 sizes).
+# METHOD shrink checks occluder shrinking (papers/004, issue 14) instead,
+# on the CPU (it has no GPU path yet); both checks what neither proves.
 #
-#   scripts/oracle-never-wrong.sh [CELLS] [RAYS]
+#   scripts/oracle-never-wrong.sh [CELLS] [RAYS] [extended|shrink|both]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cells=${1:-5}
 rays=${2:-1000000}
+method=${3:-extended}
 cargo build --release --quiet --example street_cells
-bin=target/release/examples/street_cells
+bin=${CARGO_TARGET_DIR:-target}/release/examples/street_cells
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
 shared=../shared/scenes
 models=(scenes/*.obj
@@ -34,14 +37,16 @@ for model in "${models[@]}"; do
         */machine) ;;
         *) kinds+=("--rooms|3 --height 2") ;;
     esac
-    for raster in cpu gpu; do
+    rasters=(cpu gpu)
+    [ "$method" = extended ] || rasters=(cpu)
+    for raster in "${rasters[@]}"; do
         gpu=""
         [ "$raster" = gpu ] && gpu=--gpu
         for kind in "${kinds[@]}"; do
             IFS='|' read -r flag size <<< "$kind"
             # shellcheck disable=SC2086
-            if line=$($bin "$model" "$cells" $size $flag $gpu --rays "$rays" 2>&1 | tail -1); then
-                echo "$name | $raster | ${flag:-street} $size | ${line#mean over }"
+            if line=$($bin "$model" "$cells" $size $flag $gpu --rays "$rays" --method "$method" 2>&1 | tail -1); then
+                echo "$name | $method $raster | ${flag:-street} $size | ${line#mean over }"
             elif [[ "$line" == *"found no place"* ]]; then
                 echo "$name | $raster | ${flag:-street} $size | no such cell in this scene"
             else

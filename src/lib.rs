@@ -78,6 +78,7 @@
 //! | [`query`] | papers/003 sec. 7 | [`query::Pvs`]: range and view queries |
 //! | [`oracle`] | papers/001 | the conservative extended-projection oracle |
 //! | [`conservative`] | papers/001 sec. 6 | the conservative bake: a spatial k-d tree of the oracle's sets |
+//! | [`shrink`] | papers/004 sec. 4 | occluder shrinking: a second conservative oracle, from the cell's centre |
 //! | [`lazy_grid`] | papers/002 | the lazy occlusion grid (an online baseline) |
 //!
 //! Runtime side (always built): [`geom`] (boxes, 5D cells), [`bitset`],
@@ -88,7 +89,7 @@
 //! Builder side (feature `builder`): [`scene`] (OBJ/glTF loading,
 //! procedural scenes), [`trace`] (the exact BVH tracer), [`random`] (the
 //! shared random draws), [`sample`], [`sprt`], [`builder`], [`render`] (the
-//! one camera and the ray-cast ID buffer), [`oracle`], [`conservative`], [`lazy_grid`],
+//! one camera and the ray-cast ID buffer), [`oracle`], [`shrink`], [`conservative`], [`lazy_grid`],
 //! [`report`] (the methods compared against a ray-cast ground truth).
 //!
 //! ## Features
@@ -128,6 +129,8 @@ pub mod report;
 pub mod sample;
 #[cfg(feature = "builder")]
 pub mod scene;
+#[cfg(feature = "builder")]
+pub mod shrink;
 #[cfg(feature = "builder")]
 pub mod sprt;
 #[cfg(feature = "builder")]

@@ -104,16 +104,19 @@ enum Command {
     /// [x,y,z], "fov": degrees} (square field of view, up = +z unless the
     /// direction is vertical).
     Query(query::QueryArgs),
-    /// Run the conservative extended-projection oracle (papers/001) for one
-    /// view cell.
+    /// Run a conservative oracle for one view cell: extended projections
+    /// (papers/001, the default) or occluder shrinking (papers/004).
     ///
     /// Prints the objects it cannot prove hidden from any point of the
     /// cell (a box of viewpoints, all directions): a superset of the
-    /// visible ones. Six projection planes around the cell collect the
-    /// occlusion of convex occluders (whole convex objects, merged
-    /// coplanar polygons, triangles) into Depth Maps; object boxes are
-    /// tested against them. Prints the planes, the timings and the
-    /// objects.
+    /// visible ones. `--method extended`: six projection planes around the
+    /// cell collect the occlusion of convex occluders (whole convex
+    /// objects, merged coplanar polygons, triangles) and cuts of solids
+    /// into Depth Maps; object boxes are tested against them. `--method
+    /// shrink`: every closed solid is shrunk by half the cell's diagonal
+    /// and the objects are tested from the cell's centre against all of
+    /// them at once, in a cube map. Prints what each step did, the
+    /// timings and the objects.
     Oracle(oracle::OracleArgs),
     /// Cross-check a built tree against the oracle.
     ///

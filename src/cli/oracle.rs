@@ -1,14 +1,16 @@
-//! `vis5d oracle`: the extended-projection oracle for one cell, and the
-//! oracle flags `vis5d check` shares.
+//! `vis5d oracle`: a conservative oracle for one cell (extended
+//! projections or occluder shrinking), and the oracle flags `vis5d check`
+//! shares.
 
 use std::io::{self, Write};
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Result, anyhow};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use serde::Serialize;
 use vis5d::oracle::{CellReport, Oracle, OracleError, OracleParams, Rasteriser};
+use vis5d::shrink::{ShrinkError, ShrinkOracle, ShrinkParams};
 
 use crate::common::{WorldBox, flag, load_scene, parse_box, printable};
 
@@ -146,11 +148,27 @@ pub struct OracleArgs {
     /// coordinates).
     #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box, allow_hyphen_values = true)]
     cell: WorldBox,
+    /// The method: `extended` (papers/001's extended projections onto
+    /// planes around the cell) or `shrink` (papers/004: closed solids
+    /// shrunk by half the cell's diagonal, tested from its centre; only
+    /// --resolution, the cube map's pixels a side, and --occludee-depth
+    /// apply).
+    #[arg(long, value_enum, default_value_t = Method::Extended)]
+    method: Method,
     #[command(flatten)]
     flags: OracleFlags,
     /// Print as JSON: the objects, the planes and the timings.
     #[arg(long)]
     json: bool,
+}
+
+/// A conservative from-region method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Method {
+    /// Extended projections (papers/001).
+    Extended,
+    /// Occluder shrinking (papers/004).
+    Shrink,
 }
 
 #[derive(Serialize)]
@@ -165,6 +183,7 @@ struct PlaneJson {
 
 #[derive(Serialize)]
 struct OracleJson<'a> {
+    method: &'static str,
     scene: String,
     /// World coordinates, as given.
     cell: [[f64; 3]; 2],
@@ -201,6 +220,9 @@ struct Seconds {
 
 /// Runs `vis5d oracle`.
 pub fn run(args: &OracleArgs) -> Result<()> {
+    if args.method == Method::Shrink {
+        return run_shrink(args);
+    }
     let params = args.flags.params()?;
     let (scene, load) = load_scene(&args.file)?;
     let rasteriser = args.flags.rasteriser();
@@ -217,6 +239,7 @@ pub fn run(args: &OracleArgs) -> Result<()> {
         .collect();
     let t = report.times;
     let json = OracleJson {
+        method: "extended",
         scene: args.file.display().to_string(),
         cell: [args.cell.min.to_array(), args.cell.max.to_array()],
         objects: scene.objects().len(),
@@ -339,6 +362,161 @@ pub fn run(args: &OracleArgs) -> Result<()> {
         out,
         "time: load {:.3} s, prepare {:.3} s, cell {:.3} s (select {:.3}, rasterise {:.3}, test {:.3}); depth maps on the {}",
         s.load, s.prepare, s.cell, s.select, s.rasterise, s.test, json.backend
+    )?;
+    for n in &json.potentially_visible {
+        writeln!(out, "{}", printable(n))?;
+    }
+    Ok(())
+}
+
+#[derive(Serialize)]
+struct ShrinkJson<'a> {
+    method: &'static str,
+    scene: String,
+    /// World coordinates, as given.
+    cell: [[f64; 3]; 2],
+    objects: usize,
+    /// Solids that can be shrunk.
+    occluders: usize,
+    potentially_visible: Vec<&'a str>,
+    hidden: usize,
+    touching_cell: usize,
+    resolution: usize,
+    backend: &'static str,
+    /// The distance the solids were shrunk by.
+    erosion: f64,
+    solids_drawn: usize,
+    faces_drawn: usize,
+    /// What shrinking did to the solids' faces.
+    faces: FacesJson,
+    covered_pixels: usize,
+    cluster_hidden: usize,
+    seconds: ShrinkSeconds,
+}
+
+#[derive(Serialize)]
+struct FacesJson {
+    input: usize,
+    degenerate: usize,
+    swept: usize,
+    #[serde(rename = "unsafe")]
+    unsafe_: usize,
+    kept: usize,
+}
+
+#[derive(Serialize)]
+struct ShrinkSeconds {
+    load: f64,
+    prepare: f64,
+    shrink: f64,
+    rasterise: f64,
+    test: f64,
+    cell: f64,
+}
+
+/// `vis5d oracle --method shrink`.
+fn run_shrink(args: &OracleArgs) -> Result<()> {
+    let params = ShrinkParams {
+        resolution: args.flags.resolution,
+        occludee_depth: args.flags.occludee_depth.into(),
+        ..ShrinkParams::default()
+    };
+    params.validate().map_err(|e| match &e {
+        ShrinkError::Parameter { name, .. } => anyhow!("{}: {e}", flag(name)),
+    })?;
+    let (scene, load) = load_scene(&args.file)?;
+    let start = Instant::now();
+    let oracle = ShrinkOracle::new(&scene, params)?;
+    let prepare = start.elapsed().as_secs_f64();
+    let frame = scene.frame();
+    let report = oracle.cell(&args.cell.to_local(&frame));
+    let names: Vec<&str> = report
+        .visible
+        .iter()
+        .map(|i| scene.objects()[i].name.as_str())
+        .collect();
+    let t = report.times;
+    let c = report.counts;
+    let json = ShrinkJson {
+        method: "shrink",
+        scene: args.file.display().to_string(),
+        cell: [args.cell.min.to_array(), args.cell.max.to_array()],
+        objects: scene.objects().len(),
+        occluders: oracle.solid_count(),
+        hidden: scene.objects().len() - names.len(),
+        potentially_visible: names,
+        touching_cell: report.touching,
+        resolution: oracle.params().resolution,
+        backend: "cpu",
+        erosion: report.erosion,
+        solids_drawn: report.solids_drawn,
+        faces_drawn: report.faces_drawn,
+        faces: FacesJson {
+            input: c.input,
+            degenerate: c.degenerate,
+            swept: c.swept,
+            unsafe_: c.unsafe_,
+            kept: c.kept,
+        },
+        covered_pixels: report.covered,
+        cluster_hidden: report.cluster_hidden,
+        seconds: ShrinkSeconds {
+            load,
+            prepare,
+            shrink: t.shrink.as_secs_f64(),
+            rasterise: t.rasterise.as_secs_f64(),
+            test: t.test.as_secs_f64(),
+            cell: t.total().as_secs_f64(),
+        },
+    };
+    let mut out = io::stdout().lock();
+    if args.json {
+        serde_json::to_writer(&mut out, &json)?;
+        writeln!(out)?;
+        return Ok(());
+    }
+    writeln!(
+        out,
+        "{}: {} objects, {} closed solids (or open only at the bottom) to shrink",
+        json.scene, json.objects, json.occluders
+    )?;
+    writeln!(out, "cell {:?} .. {:?}", json.cell[0], json.cell[1])?;
+    let f = &json.faces;
+    writeln!(
+        out,
+        "  shrunk by {:.4}: of {} faces, {} degenerate, {} swept into others (the paper's test), {} not deep enough inside (ours), {} kept",
+        json.erosion, f.input, f.degenerate, f.swept, f.unsafe_, f.kept
+    )?;
+    let pixels = 6 * json.resolution * json.resolution;
+    writeln!(
+        out,
+        "  from the centre: {} shrunk solids ({} faces) drawn, {:.1}% of 6 x {}x{} pixels covered",
+        json.solids_drawn,
+        json.faces_drawn,
+        100.0 * json.covered_pixels as f64 / pixels as f64,
+        json.resolution,
+        json.resolution
+    )?;
+    if json.cluster_hidden > 0 {
+        writeln!(
+            out,
+            "  occludee clusters: {} objects hidden cluster by cluster",
+            json.cluster_hidden
+        )?;
+    }
+    writeln!(
+        out,
+        "potentially visible: {} of {} objects ({:.1}% proved hidden; {} touch the cell)",
+        json.potentially_visible.len(),
+        json.objects,
+        100.0 * json.hidden as f64 / json.objects.max(1) as f64,
+        json.touching_cell
+    )?;
+    let s = &json.seconds;
+    writeln!(
+        out,
+        "time: load {:.3} s, prepare {:.3} s, cell {:.3} s (shrink {:.3}, rasterise {:.3}, test {:.3}); cube map on the CPU",
+        s.load, s.prepare, s.cell, s.shrink, s.rasterise, s.test
     )?;
     for n in &json.potentially_visible {
         writeln!(out, "{}", printable(n))?;

@@ -76,11 +76,18 @@ mod oracle_slice;
 mod oracle_sweep;
 
 pub use oracle_check::{CheckParams, CheckReport, LeafCheck, Suspect, Violation, check_tree};
+pub(crate) use oracle_clusters::{Cluster, build as build_clusters};
 #[cfg(feature = "gpu")]
 pub use oracle_gpu::{GpuError, GpuRasteriser};
 pub use oracle_occluders::OccluderCounts;
 pub use oracle_plane::{MapJob, ProjectedOccluder, cpu_rasterise};
 pub use oracle_raster::Rasteriser;
+
+/// The objects that can be sliced (closed, or open only at the bottom),
+/// for the shrinking oracle ([`crate::shrink`]).
+pub(crate) fn sliced_solids(scene: &Scene) -> Vec<SlicedSolid> {
+    oracle_occluders::extract(scene).solids
+}
 
 use std::time::{Duration, Instant};
 

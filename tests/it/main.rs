@@ -14,6 +14,7 @@ mod oracle;
 mod procedural;
 mod real_scenes;
 mod report;
+mod shrink;
 mod sprt;
 mod trace;
 mod v5d;

@@ -41,7 +41,7 @@ fn violations(
 /// The cells of the property test for one scene: random boxes of many
 /// sizes inside the scene, tiny ones, huge ones, ones outside the scene,
 /// and ones centred on object surfaces (touching or crossing geometry).
-fn cells(scene: &Scene, rng: &mut Pcg64) -> Vec<(String, Aabb)> {
+pub fn cells(scene: &Scene, rng: &mut Pcg64) -> Vec<(String, Aabb)> {
     let b = scene.bounds();
     let size = b.size();
     let at = |rng: &mut Pcg64| b.min + size * Vec3::new(rng.random(), rng.random(), rng.random());

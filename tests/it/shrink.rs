@@ -1,0 +1,161 @@
+//! Occluder shrinking (papers/004) is never wrong: no object that a ray
+//! from the cell hits first is declared hidden, on every committed scene,
+//! on the property test's cells and on small cells where shrinking proves
+//! much; and the same check fails when the solids are shrunk by too
+//! little (a mutation it must catch).
+
+use glam::Vec3;
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+use vis5d::geom::Aabb;
+use vis5d::random::{uniform_direction, uniform_point};
+use vis5d::scene::{self, Scene};
+use vis5d::shrink::{ShrinkOracle, ShrinkParams};
+use vis5d::trace::{Ray, Tracer};
+
+use crate::committed;
+
+/// The objects hit first by `rays` random rays from random points of
+/// `cell` that the oracle calls hidden; and how many it hid.
+fn violations(
+    oracle: &ShrinkOracle,
+    tracer: &Tracer,
+    cell: &Aabb,
+    rays: usize,
+    rng: &mut Pcg64,
+) -> (Vec<(usize, Ray)>, usize) {
+    let report = oracle.cell(cell);
+    let batch: Vec<Ray> = (0..rays)
+        .map(|_| Ray::new(uniform_point(rng, cell), uniform_direction(rng)))
+        .collect();
+    let mut out: Vec<(usize, Ray)> = Vec::new();
+    for (ray, hit) in batch.iter().zip(tracer.closest_hits(&batch)) {
+        if let Some(h) = hit
+            && !report.visible.contains(h.object as usize)
+            && !out.iter().any(|(o, _)| *o == h.object as usize)
+        {
+            out.push((h.object as usize, *ray));
+        }
+    }
+    let hidden = report.visible.capacity() - report.visible.count();
+    (out, hidden)
+}
+
+/// The oracle property test's cells, and small cells (0.2% to 1% of the
+/// scene's size) at random points, where shrinking by their half
+/// diagonal leaves solids to hide behind.
+fn cells(scene: &Scene, rng: &mut Pcg64) -> Vec<(String, Aabb)> {
+    let mut out = crate::oracle::cells(scene, rng);
+    let b = scene.bounds();
+    let size = b.size();
+    for k in 0..6 {
+        let c = b.min + size * Vec3::new(rng.random(), rng.random(), rng.random());
+        let half = Vec3::splat(size.max_element() * rng.random_range(0.001..0.005));
+        out.push((format!("small {k}"), Aabb::new(c - half, c + half)));
+    }
+    out
+}
+
+/// Checks every cell of `name` with `rays` rays; returns the objects
+/// hidden over all cells and the violations.
+fn run(name: &str, params: ShrinkParams, rays: usize) -> (usize, Vec<String>) {
+    let scene = scene::load(committed(name)).expect("committed scene loads");
+    let tracer = Tracer::new(&scene);
+    let oracle = ShrinkOracle::new(&scene, params).expect("valid parameters");
+    let mut rng = Pcg64::seed_from_u64(0x5412);
+    let (mut hidden, mut bad) = (0, Vec::new());
+    for (label, cell) in cells(&scene, &mut rng) {
+        let (found, h) = violations(&oracle, &tracer, &cell, rays, &mut rng);
+        hidden += h;
+        for (o, r) in found {
+            bad.push(format!(
+                "{name}, cell {label} {cell:?}: {} hidden but hit by {r:?}",
+                scene.objects()[o].name
+            ));
+        }
+    }
+    (hidden, bad)
+}
+
+fn never_wrong(name: &str) -> usize {
+    let (hidden, bad) = run(name, ShrinkParams::default(), 100_000);
+    assert!(bad.is_empty(), "{bad:#?}");
+    eprintln!("{name}: {hidden} objects hidden over the cells");
+    hidden
+}
+
+#[test]
+fn shrinking_is_never_wrong_on_apartment() {
+    never_wrong("apartment.obj");
+}
+
+#[test]
+fn shrinking_is_never_wrong_on_office() {
+    never_wrong("office.obj");
+}
+
+#[test]
+fn shrinking_is_never_wrong_on_city_and_hides_much_there() {
+    // The city's blocks are closed boxes: small cells among them hide most
+    // of the town.
+    assert!(never_wrong("city.obj") > 300);
+}
+
+#[test]
+fn shrinking_is_never_wrong_on_forest() {
+    never_wrong("forest.obj");
+}
+
+#[test]
+fn shrinking_is_never_wrong_on_machine() {
+    never_wrong("machine.obj");
+}
+
+#[test]
+fn shrinking_by_too_little_is_caught_by_the_rays() {
+    // Shrunk by a twentieth of the cell's half diagonal, the answer is
+    // visibility from (near) the centre: rays from the rest of the cell see
+    // past the corners of the buildings.
+    let params = ShrinkParams {
+        erosion_scale: 0.05,
+        ..ShrinkParams::default()
+    };
+    let (hidden, bad) = run("city.obj", params, 100_000);
+    assert!(hidden > 0);
+    assert!(!bad.is_empty(), "the mutation went unnoticed");
+}
+
+#[test]
+fn bad_settings_are_refused_by_name() {
+    let scene = scene::load(committed("machine.obj")).unwrap();
+    for (params, name) in [
+        (
+            ShrinkParams {
+                resolution: 100,
+                ..ShrinkParams::default()
+            },
+            "resolution",
+        ),
+        (
+            ShrinkParams {
+                occludee_depth: 0,
+                ..ShrinkParams::default()
+            },
+            "occludee_depth",
+        ),
+        (
+            ShrinkParams {
+                erosion_scale: f64::NAN,
+                ..ShrinkParams::default()
+            },
+            "erosion_scale",
+        ),
+    ] {
+        let e = ShrinkOracle::new(&scene, params).err().expect("refused");
+        assert!(e.to_string().contains(name), "{e}");
+    }
+    // A cell that is not a box proves nothing.
+    let oracle = ShrinkOracle::new(&scene, ShrinkParams::default()).unwrap();
+    let r = oracle.cell(&Aabb::new(Vec3::splat(1.0), Vec3::splat(f32::NAN)));
+    assert_eq!(r.visible.count(), scene.objects().len());
+}
