@@ -180,7 +180,8 @@ pub struct ShrinkReport {
     pub times: ShrinkTimes,
 }
 
-/// The scene's solids shrunk by one distance.
+/// The scene's solids shrunk by one distance (in the order of
+/// [`ShrinkOracle::solids`]).
 struct ShrunkSet {
     solids: Vec<Shrunk>,
     counts: ShrinkCounts,
@@ -191,6 +192,9 @@ pub struct ShrinkOracle<'a> {
     scene: &'a Scene,
     params: ShrinkParams,
     solids: Vec<Solid>,
+    /// For a closed solid with a flat bottom, the index of the same solid
+    /// on its floor (drawn too for cells above that floor).
+    twins: Vec<Option<usize>>,
     clusters: Vec<Vec<Cluster>>,
     cache: Mutex<HashMap<u64, Arc<ShrunkSet>>>,
 }
@@ -200,12 +204,24 @@ impl<'a> ShrinkOracle<'a> {
     /// only at the bottom), each object's triangle clusters.
     pub fn new(scene: &'a Scene, params: ShrinkParams) -> Result<Self, ShrinkError> {
         params.validate()?;
-        let solids = sliced_solids(scene)
-            .into_iter()
-            .filter_map(|s| Solid::new(&s.triangles, s.open_bottom))
-            .collect();
+        let mut solids = Vec::new();
+        let mut twins = Vec::new();
+        for s in sliced_solids(scene) {
+            let Some(solid) = Solid::new(&s.triangles, s.open_bottom) else {
+                continue;
+            };
+            let twin = solid.on_its_floor();
+            solids.push(solid);
+            twins.push(None);
+            if let Some(t) = twin {
+                *twins.last_mut().expect("pushed") = Some(solids.len());
+                solids.push(t);
+                twins.push(None);
+            }
+        }
         Ok(Self {
             scene,
+            twins,
             clusters: build_clusters(scene, params.occludee_depth),
             params,
             solids,
@@ -218,9 +234,10 @@ impl<'a> ShrinkOracle<'a> {
         &self.params
     }
 
-    /// The number of solids that can be shrunk (occluders).
+    /// The number of solids that can be shrunk (occluders; a closed solid
+    /// with a flat bottom, shrunk two ways, counts once).
     pub fn solid_count(&self) -> usize {
-        self.solids.len()
+        self.solids.len() - self.twins.iter().filter(|t| t.is_some()).count()
     }
 
     /// A margin for the tracer's rounding: as the extended-projection
@@ -243,12 +260,13 @@ impl<'a> ShrinkOracle<'a> {
         let start = Instant::now();
         let mut counts = ShrinkCounts::default();
         let mut solids = Vec::new();
-        for s in &self.solids {
+        for (s, twin) in self.solids.iter().zip(&self.twins) {
             let (shrunk, c) = s.shrink(e, margin);
-            counts += c;
-            if !shrunk.triangles.is_empty() {
-                solids.push(shrunk);
+            if twin.is_none() {
+                // Each solid counted once: on its floor where it has one.
+                counts += c;
             }
+            solids.push(shrunk);
         }
         let set = Arc::new(ShrunkSet { solids, counts });
         self.cache
@@ -294,10 +312,12 @@ impl<'a> ShrinkOracle<'a> {
         let start = Instant::now();
         let mut map = CubeMap::new(eye, self.params.resolution);
         let (gmin, gmax) = (cmin - slack, cmax + slack);
+        let above = |floor: Option<f64>| floor.is_none_or(|f| cmin.z > f + slack);
+        // A closed solid and its twin on its floor are both drawn: the twin
+        // hides more above the floor, the solid what is below it.
         for s in &set.solids {
             let apart = (0..3).any(|k| s.solid_max[k] < gmin[k] || s.solid_min[k] > gmax[k]);
-            let above = s.floor.is_none_or(|f| cmin.z > f + slack);
-            if apart && above {
+            if apart && above(s.floor) && !s.triangles.is_empty() {
                 map.draw(s);
                 report.solids_drawn += 1;
                 report.faces_drawn += s.triangles.len();

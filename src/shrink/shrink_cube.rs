@@ -4,8 +4,9 @@
 //! Each of the six faces of a cube around the eye is an `n` x `n` grid of
 //! pixels; a pixel is the pyramid of rays from the eye through it. A pixel
 //! holds `(D, F)` when every ray of it meets a kept shrunk face within
-//! distance `D` of the eye, of a solid whose floor (for one open at the
-//! bottom) is at most `F`; else `D` is infinite.
+//! distance `D` of the eye, of a solid whose floor (for one on a floor) is
+//! at most `F`; else `D` is infinite. It also holds the `D` of the solids
+//! not on floors alone, which binds occludees at any height.
 //!
 //! **Coverage of a union.** From the eye, an edge of a shrunk solid is
 //! *inside* the solid's outline when its two faces lie on opposite sides
@@ -28,8 +29,9 @@
 //! touching solids anyway; papers/004 sec. 4.1.4).
 //!
 //! **Occludees.** A box is hidden when every pixel its faces touch holds
-//! a `D` below the box's smallest distance from the eye and an `F` at or
-//! below its lowest point.
+//! a `D` of solids not on floors below the box's smallest distance from
+//! the eye, or such a `D` of any solids with an `F` at or below the box's
+//! lowest point.
 
 use glam::{DVec2, DVec3};
 
@@ -53,9 +55,13 @@ const FACES: [(usize, f64); 6] = [
 pub struct CubeMap {
     eye: DVec3,
     n: usize,
-    /// `D` per pixel (face-major, then row, then column).
+    /// `D` per pixel (face-major, then row, then column), of solids not
+    /// on a floor (any occludee point farther is hidden).
     depth: Vec<f64>,
-    /// `F` per pixel.
+    /// `D` per pixel of solids on floors (with those of `depth`).
+    depth_floor: Vec<f64>,
+    /// `F` per pixel: the highest floor of the solids behind
+    /// `depth_floor`.
     floor: Vec<f64>,
     scratch: Scratch,
 }
@@ -84,6 +90,7 @@ impl CubeMap {
             eye,
             n,
             depth: vec![f64::INFINITY; len],
+            depth_floor: vec![f64::INFINITY; len],
             floor: vec![f64::NEG_INFINITY; len],
             scratch: Scratch {
                 stamp: vec![0; len],
@@ -96,9 +103,9 @@ impl CubeMap {
         }
     }
 
-    /// The pixels covered (finite `D`).
+    /// The pixels covered (finite `D`, on floors or not).
     pub fn covered(&self) -> usize {
-        self.depth.iter().filter(|d| d.is_finite()).count()
+        self.depth_floor.iter().filter(|d| d.is_finite()).count()
     }
 
     /// Draws one shrunk solid (its kept faces and outline), merging its
@@ -177,8 +184,13 @@ impl CubeMap {
             let p = p as usize;
             if s.inside[p] && !s.outline[p] {
                 let d = s.far[p];
-                if d < self.depth[p] || (d == self.depth[p] && floor < self.floor[p]) {
-                    self.depth[p] = d;
+                if solid.floor.is_none() {
+                    self.depth[p] = self.depth[p].min(d);
+                }
+                // Both claims hold (every ray meets this solid by d and
+                // the one before by its D): keep the nearer.
+                if d < self.depth_floor[p] || (d == self.depth_floor[p] && floor < self.floor[p]) {
+                    self.depth_floor[p] = d;
                     self.floor[p] = floor;
                 }
             }
@@ -227,7 +239,8 @@ impl CubeMap {
                     }
                     for col in lo..=hi {
                         let p = pixel(face, row, col, n);
-                        if !(self.depth[p] < near && self.floor[p] <= min.z) {
+                        let free = self.depth[p] < near;
+                        if !(free || (self.depth_floor[p] < near && self.floor[p] <= min.z)) {
                             hidden = false;
                             return;
                         }
@@ -494,7 +507,7 @@ mod tests {
                 (d[cc] / x + 1.0) * n as f64 / 2.0,
             );
             let p = pixel(face, (w as usize).min(n - 1), (u as usize).min(n - 1), n);
-            if !map.depth[p].is_finite() {
+            if !map.depth_floor[p].is_finite() {
                 continue;
             }
             tried += 1;
@@ -507,7 +520,7 @@ mod tests {
                 t1 = t1.min(ta.max(tb));
             }
             assert!(t0 <= t1, "a ray of a covered pixel misses: {d:?}");
-            assert!(t0 * d.length() <= map.depth[p] + 1e-9);
+            assert!(t0 * d.length() <= map.depth_floor[p] + 1e-9);
         }
         assert!(tried > 1000, "{tried}");
     }

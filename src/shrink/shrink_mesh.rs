@@ -15,17 +15,21 @@
 //! 3. **Swept volumes** (sec. 4.1.4): the volume a face sweeps as it
 //!    shrinks is the hull of its old and new corners; two faces that share
 //!    no vertex and whose swept volumes meet (bounding boxes, then a search
-//!    for a separating plane) are both removed.
+//!    for a separating plane) are both removed. Done last, among the faces
+//!    the check below kept (it removes only more, and the pairs are far
+//!    fewer: on curved meshes of small faces, comparing every face's swept
+//!    volume with its neighbours' first took tens of seconds).
 //!
 //! The paper's steps do not by themselves keep a shrunk face inside the
 //! solid's erosion by a ball of radius `e` (a face moved past a thin part
 //! of the solid, or past a notch whose faces it does not sweep into, is
 //! not caught). What Theorem 1 needs is exactly that erosion, so each
 //! face that survives is **checked**: it must be at least `e` plus a
-//! margin from every face of the solid (and from the virtual floor of a
-//! solid open at the bottom), and inside the solid (one point, by the
+//! margin from every face of the solid, and inside the solid (one point, by the
 //! parity of crossings along a ray; a face at distance `> 0` from the
 //! surface lies wholly on one side of it). A face that fails is removed.
+//! For a solid on a floor (see [`Solid`]) the floor is left out of the
+//! distances and no point may lie below it.
 //! Then every point `s` of a kept face has the open ball of radius `e`
 //! around it inside the solid, which is what the proof in `mod.rs` uses.
 
@@ -42,17 +46,31 @@ use crate::geom::{Aabb, BoxTree};
 pub const MIN_SINE: f64 = 0.05;
 
 /// A closed solid to shrink: a closed, consistently oriented welded mesh,
-/// or one open only at its bottom (an extruded footprint without a floor),
-/// closed there by a virtual floor at height `floor`.
+/// or a solid **on a floor**: open only at its bottom, where every open
+/// edge lies in the plane `z = floor` (an extruded footprint without a
+/// floor, or a closed solid with its flat bottom faces taken off).
+///
+/// A solid `X` on a floor is shrunk as `X u H`, `H` the half-space below
+/// the floor (papers/004 Fig. 16: "the vertices touching the ground are
+/// not moved vertically"): its floor vertices move only across the floor,
+/// and the check asks for distance from every face but not from the
+/// floor, and no point below it. That is sound for viewpoints and
+/// occludee points above the floor (a point on it will do for the
+/// occludee): a segment between two such points that passes within `e` of
+/// a shrunk face passes through `X u H` above the floor, so through `X`,
+/// and crosses one of its faces (mod.rs). `H` need not be opaque: the
+/// segment never reaches it. Were the bottom shrunk up by `e` instead, a
+/// building would float `e` above the street and hide nothing from a
+/// viewpoint lower than that.
 #[derive(Clone, Debug)]
 pub struct Solid {
     /// Its welded vertices.
     pub vertices: Vec<DVec3>,
     /// Its triangles, wound so that their normals point out of the solid.
     pub triangles: Vec<[u32; 3]>,
-    /// The height of the virtual floor of a solid open at the bottom.
+    /// The height of the floor of a solid on one.
     pub floor: Option<f64>,
-    /// Vertices on the open bottom edges (they also face the floor).
+    /// Vertices on the open bottom edges.
     pub on_floor: Vec<bool>,
     /// Its bounding box.
     pub min: DVec3,
@@ -69,7 +87,8 @@ pub struct ShrinkCounts {
     pub input: usize,
     /// Removed as degenerate, turned over, or at a vertex too sharp.
     pub degenerate: usize,
-    /// Removed because their swept volumes met another's (the paper).
+    /// Removed because their swept volumes met another's (the paper's
+    /// test, among the faces the erosion check kept).
     pub swept: usize,
     /// Removed by the erosion check (ours).
     pub unsafe_: usize,
@@ -218,6 +237,30 @@ impl Solid {
         })
     }
 
+    /// A closed solid with a flat bottom (faces facing down in the plane of
+    /// its lowest point) as a solid on that floor: the same without those
+    /// faces. `None` for a solid already on a floor or without such faces.
+    pub fn on_its_floor(&self) -> Option<Solid> {
+        if self.floor.is_some() {
+            return None;
+        }
+        let g = self.min.z;
+        let mut rest = Vec::with_capacity(self.triangles.len());
+        let mut dropped = 0;
+        for t in 0..self.triangles.len() {
+            let c = self.corners(t);
+            if c.iter().all(|p| p.z == g) && self.normal(t).z < 0.0 {
+                dropped += 1;
+            } else {
+                rest.push(c);
+            }
+        }
+        if dropped == 0 || rest.is_empty() {
+            return None;
+        }
+        Solid::new(&rest, Some(g))
+    }
+
     fn corners(&self, t: usize) -> [DVec3; 3] {
         self.triangles[t].map(|i| self.vertices[i as usize])
     }
@@ -229,9 +272,9 @@ impl Solid {
     }
 
     /// Shrinks the solid by `e` (> 0): the paper's offsets, degenerate
-    /// faces and swept volumes (moving faces by `e + 2 margin`), then the
-    /// erosion check (every kept face at least `e + margin` from the
-    /// surface).
+    /// faces (moving faces by `e + 2 margin`), the erosion check (every
+    /// kept face at least `e + margin` from the surface), then the swept
+    /// volumes.
     pub fn shrink(&self, e: f64, margin: f64) -> (Shrunk, ShrinkCounts) {
         let n = self.triangles.len();
         let mut counts = ShrinkCounts {
@@ -254,10 +297,11 @@ impl Solid {
                 sum[v] += normals[t] * a.angle_between(b);
             }
         }
-        let down = DVec3::new(0.0, 0.0, -1.0);
+        // Vertices on the floor move only across it (papers/004 Fig. 16):
+        // the solid stays on its floor, see [`Solid`].
         for (v, s) in sum.iter_mut().enumerate() {
             if self.on_floor[v] {
-                *s += down * std::f64::consts::FRAC_PI_2;
+                s.z = 0.0;
             }
         }
         let nv: Vec<DVec3> = sum.iter().map(|s| s.normalize_or_zero()).collect();
@@ -266,11 +310,6 @@ impl Solid {
             for &v in tri {
                 let s = &mut sine[v as usize];
                 *s = s.min(nv[v as usize].dot(normals[t]));
-            }
-        }
-        for (v, s) in sine.iter_mut().enumerate() {
-            if self.on_floor[v] {
-                *s = s.min(nv[v].dot(down));
             }
         }
         // Moved by twice the margin more than the check asks for, so that
@@ -297,6 +336,15 @@ impl Solid {
             if sharp || normals[t] == DVec3::ZERO || facing.is_nan() || facing <= 1e-9 * area0 {
                 keep[t] = false;
                 counts.degenerate += 1;
+            }
+        }
+        // The erosion check first: it is what makes the faces safe, and
+        // the swept volumes are then compared among fewer faces.
+        let need = e + margin;
+        for (k, tri) in keep.iter_mut().zip(&self.triangles) {
+            if *k && !self.eroded(tri.map(|i| moved[i as usize]), need) {
+                *k = false;
+                counts.unsafe_ += 1;
             }
         }
         // Swept volumes.
@@ -353,23 +401,16 @@ impl Solid {
                 counts.swept += 1;
             }
         }
-        // The erosion check.
-        let need = e + margin;
-        for (k, tri) in keep.iter_mut().zip(&self.triangles) {
-            if *k && !self.eroded(tri.map(|i| moved[i as usize]), need) {
-                *k = false;
-                counts.unsafe_ += 1;
-            }
-        }
         counts.kept = keep.iter().filter(|k| **k).count();
         (self.shrunk(&moved, &keep), counts)
     }
 
     /// Whether the triangle `s` lies inside the solid, at least `need`
-    /// from its surface (and floor).
+    /// from its surface (but for the floor, for a solid on one: then not
+    /// below it).
     fn eroded(&self, s: [DVec3; 3], need: f64) -> bool {
         if let Some(f) = self.floor
-            && s.iter().any(|p| (p.z - f).is_nan() || p.z - f < need)
+            && s.iter().any(|p| p.z.is_nan() || p.z < f)
         {
             return false;
         }
@@ -399,15 +440,19 @@ impl Solid {
             [0.2718, -0.3141, 1.0],
             [-0.1618, -0.2236, 1.0],
         ];
+        let mut near = Vec::new();
         'directions: for d in DIRECTIONS {
             let d = DVec3::from_array(d).normalize();
+            // The faces whose boxes the ray's box (up to the solid's top)
+            // meets.
+            let end = p + d * ((self.max.z - p.z).max(0.0) / d.z);
+            let (lo, hi) = (p.min(end).as_vec3(), p.max(end).as_vec3());
+            let query = Aabb::new(lo - lo.abs() * 1e-6 - 1e-6, hi + hi.abs() * 1e-6 + 1e-6);
+            near.clear();
+            self.tree.overlapping(&query, &mut near);
             let mut crossings = 0usize;
-            for t in 0..self.triangles.len() {
-                let [a, b, c] = self.corners(t);
-                let top = a.z.max(b.z).max(c.z);
-                if top < p.z {
-                    continue;
-                }
+            for &t in &near {
+                let [a, b, c] = self.corners(t as usize);
                 match ray_crosses(p, d, [a, b, c]) {
                     Crossing::No => {}
                     Crossing::Yes => crossings += 1,
@@ -577,7 +622,7 @@ pub(crate) mod tests {
     }
 
     #[test]
-    fn a_floorless_block_shrinks_up_from_its_floor() {
+    fn a_block_on_a_floor_shrinks_across_it_and_stays_on_it() {
         let mut tris = box_triangles(DVec3::ZERO, DVec3::new(6.0, 6.0, 10.0));
         // Drop the two floor triangles (z = 0 faces come first in quads[0]).
         tris.drain(0..2);
@@ -585,7 +630,10 @@ pub(crate) mod tests {
         let (shrunk, counts) = s.shrink(1.0, 1e-6);
         assert_eq!(counts.kept, 10, "{counts:?}");
         let (min, max) = shrunk.bounds();
-        assert!(min.z >= 1.0, "{min:?}");
+        assert!(
+            (min - DVec3::new(1.0, 1.0, 0.0)).abs().max_element() < 1e-5,
+            "{min:?}"
+        );
         assert!(
             (max - DVec3::new(5.0, 5.0, 9.0)).abs().max_element() < 1e-5,
             "{max:?}"

@@ -333,7 +333,7 @@ fn check_finds_no_violations_and_catches_a_lying_oracle() {
     }
 }
 
-fn scene_of(objects: Vec<Vec<[Vec3; 3]>>) -> Scene {
+pub fn scene_of(objects: Vec<Vec<[Vec3; 3]>>) -> Scene {
     let mut b = vis5d::scene::SceneBuilder::new(vis5d::scene::SceneFormat::Procedural);
     for (i, tris) in objects.into_iter().enumerate() {
         b.begin_object(format!("o{i}"));
@@ -352,7 +352,7 @@ fn quad_x(x: f32, h: f32) -> Vec<[Vec3; 3]> {
     ]
 }
 
-fn boxed(min: Vec3, max: Vec3) -> Vec<[Vec3; 3]> {
+pub fn boxed(min: Vec3, max: Vec3) -> Vec<[Vec3; 3]> {
     let mut t = Vec::new();
     vis5d::scene::procedural::shapes::push_box(&mut t, min, max);
     t

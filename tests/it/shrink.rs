@@ -159,3 +159,148 @@ fn bad_settings_are_refused_by_name() {
     let r = oracle.cell(&Aabb::new(Vec3::splat(1.0), Vec3::splat(f32::NAN)));
     assert_eq!(r.visible.count(), scene.objects().len());
 }
+
+#[test]
+fn oracle_command_runs_the_shrinking_and_refuses_bad_input() {
+    use crate::{text, vis5d};
+    let cell = "272.8,111,1,273.8,112,2";
+    let out = vis5d(&[
+        "oracle",
+        "scenes/city.obj",
+        "--cell",
+        cell,
+        "--method",
+        "shrink",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["method"], "shrink");
+    let visible = j["potentially_visible"].as_array().unwrap().len();
+    assert_eq!(visible + j["hidden"].as_u64().unwrap() as usize, 211);
+    assert!(j["hidden"].as_u64().unwrap() > 50, "{j}");
+    // Half the cell's diagonal, rounded up to the next of 8 steps.
+    let e = j["erosion"].as_f64().unwrap();
+    assert!((0.866..0.866 * 1.1).contains(&e), "{e}");
+    let f = &j["faces"];
+    assert_eq!(
+        f["input"].as_u64(),
+        [
+            f["degenerate"].as_u64(),
+            f["swept"].as_u64(),
+            f["unsafe"].as_u64(),
+            f["kept"].as_u64()
+        ]
+        .iter()
+        .map(|x| x.unwrap())
+        .sum::<u64>()
+        .into()
+    );
+    // The same cell, rays from it: everything they hit is kept.
+    let scene = scene::load(committed("city.obj")).unwrap();
+    let names: Vec<&str> = j["potentially_visible"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .collect();
+    let tracer = Tracer::new(&scene);
+    let mut rng = Pcg64::seed_from_u64(9);
+    let b = Aabb::new(Vec3::new(272.8, 111.0, 1.0), Vec3::new(273.8, 112.0, 2.0));
+    let rays: Vec<Ray> = (0..20_000)
+        .map(|_| Ray::new(uniform_point(&mut rng, &b), uniform_direction(&mut rng)))
+        .collect();
+    for h in tracer.closest_hits(&rays).into_iter().flatten() {
+        let name = scene.objects()[h.object as usize].name.as_str();
+        assert!(names.contains(&name), "{name} hit but not kept");
+    }
+    // Text output.
+    let out = vis5d(&[
+        "oracle",
+        "scenes/city.obj",
+        "--cell",
+        cell,
+        "--method",
+        "shrink",
+    ]);
+    let t = text(&out.stdout);
+    assert!(
+        t.contains("shrunk by") && t.contains("potentially visible"),
+        "{t}"
+    );
+    for (args, message) in [
+        (
+            vec![
+                "oracle",
+                "scenes/city.obj",
+                "--cell",
+                cell,
+                "--method",
+                "guess",
+            ],
+            "invalid value 'guess'",
+        ),
+        (
+            vec![
+                "oracle",
+                "scenes/city.obj",
+                "--cell",
+                cell,
+                "--method",
+                "shrink",
+                "--resolution",
+                "100",
+            ],
+            "power of two",
+        ),
+        (
+            vec![
+                "oracle",
+                "scenes/city.obj",
+                "--cell",
+                "1,1,1,0,0,0",
+                "--method",
+                "shrink",
+            ],
+            "x0 < x1",
+        ),
+    ] {
+        let out = vis5d(&args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        assert!(
+            text(&out.stderr).contains(message),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+    }
+}
+
+#[test]
+fn buildings_stay_on_their_floor_and_hide_the_street_behind_from_low_cells() {
+    use crate::oracle::{boxed, scene_of};
+    // A ground slab, a wide building, a small one behind it and a post in
+    // front. The cell's half diagonal (1.73) is more than its centre's
+    // height (1.5): shrunk up from the ground, the wide building would
+    // float over the eye and hide nothing.
+    let scene = scene_of(vec![
+        boxed(Vec3::new(-50.0, -50.0, -0.5), Vec3::new(50.0, 50.0, 0.0)),
+        boxed(Vec3::new(10.0, -15.0, 0.0), Vec3::new(20.0, 15.0, 12.0)),
+        boxed(Vec3::new(25.0, -2.0, 0.0), Vec3::new(28.0, 2.0, 4.0)),
+        boxed(Vec3::new(5.0, 6.0, 0.0), Vec3::new(5.5, 6.5, 3.0)),
+    ]);
+    let oracle = ShrinkOracle::new(&scene, ShrinkParams::default()).unwrap();
+    let cell = Aabb::new(Vec3::new(-1.0, -1.0, 0.5), Vec3::new(1.0, 1.0, 2.5));
+    let report = oracle.cell(&cell);
+    assert!(!report.visible.contains(2), "the small building is hidden");
+    assert!(report.visible.contains(1) && report.visible.contains(3));
+    // Rays agree: none from the cell reaches it.
+    let tracer = Tracer::new(&scene);
+    let mut rng = Pcg64::seed_from_u64(4);
+    for _ in 0..5 {
+        let (found, _) = violations(&oracle, &tracer, &cell, 100_000, &mut rng);
+        assert!(found.is_empty(), "{found:?}");
+    }
+    // From 60 m up it shows over the roof.
+    let high = Aabb::new(Vec3::new(-1.0, -1.0, 60.0), Vec3::new(1.0, 1.0, 62.0));
+    assert!(oracle.cell(&high).visible.contains(2));
+}
