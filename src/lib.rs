@@ -79,6 +79,7 @@
 //! | [`oracle`] | papers/001 | the conservative extended-projection oracle |
 //! | [`conservative`] | papers/001 sec. 6 | the conservative bake: a spatial k-d tree of the oracle's sets |
 //! | [`shrink`] | papers/004 sec. 4 | occluder shrinking: a second conservative oracle, from the cell's centre |
+//! | [`slices`] | papers/004 sec. 3 | objects cut into axis slices; the hidden part of a kept object as one index per axis |
 //! | [`lazy_grid`] | papers/002 | the lazy occlusion grid (an online baseline) |
 //!
 //! Runtime side (always built): [`geom`] (boxes, 5D cells), [`bitset`],
@@ -89,7 +90,7 @@
 //! Builder side (feature `builder`): [`scene`] (OBJ/glTF loading,
 //! procedural scenes), [`trace`] (the exact BVH tracer), [`random`] (the
 //! shared random draws), [`sample`], [`sprt`], [`builder`], [`render`] (the
-//! one camera and the ray-cast ID buffer), [`oracle`], [`shrink`], [`conservative`], [`lazy_grid`],
+//! one camera and the ray-cast ID buffer), [`oracle`], [`shrink`], [`slices`], [`conservative`], [`lazy_grid`],
 //! [`report`] (the methods compared against a ray-cast ground truth).
 //!
 //! ## Features
@@ -131,6 +132,8 @@ pub mod sample;
 pub mod scene;
 #[cfg(feature = "builder")]
 pub mod shrink;
+#[cfg(feature = "builder")]
+pub mod slices;
 #[cfg(feature = "builder")]
 pub mod sprt;
 #[cfg(feature = "builder")]

@@ -98,6 +98,7 @@ use crate::bitset::ObjectSet;
 use crate::geom::polygon::{convex_hull, signed_area};
 use crate::geom::{Aabb, BoxTree};
 use crate::scene::Scene;
+use crate::slices::{SliceIndex, SlicedScene};
 use oracle_occluders::{Occluder, SlicedSolid};
 use oracle_patches::Patch;
 use oracle_plane::DepthMap;
@@ -300,6 +301,9 @@ pub struct CellReport {
     pub projected_from: Aabb,
     /// Time by stage.
     pub times: CellTimes,
+    /// With [`Oracle::cell_slices`], per object: the slices of a kept
+    /// object proved hidden and the triangles they cull (empty otherwise).
+    pub slices: Vec<Option<(SliceIndex, usize)>>,
 }
 
 /// The oracle over one scene: its occluders and the hierarchy of its
@@ -410,6 +414,34 @@ impl<'a> Oracle<'a> {
         parent_hidden: Option<&ObjectSet>,
         rasterise: &mut dyn FnMut(&[MapJob]) -> Vec<Vec<f64>>,
     ) -> CellReport {
+        self.run(cell, parent_hidden, rasterise, None)
+    }
+
+    /// [`Oracle::cell`], and for each object it keeps that does not touch
+    /// the cell, the slices proved hidden (papers/004 sec. 3) on the same
+    /// maps and sweeps: the [`SliceIndex`] that culls the most of its
+    /// triangles and how many, or `None` (in [`CellReport::slices`]).
+    pub fn cell_slices(
+        &self,
+        cell: &Aabb,
+        parent_hidden: Option<&ObjectSet>,
+        sliced: &SlicedScene,
+    ) -> CellReport {
+        self.run(
+            cell,
+            parent_hidden,
+            &mut |jobs| self.rasteriser.rasterise_many(jobs),
+            Some(sliced),
+        )
+    }
+
+    fn run(
+        &self,
+        cell: &Aabb,
+        parent_hidden: Option<&ObjectSet>,
+        rasterise: &mut dyn FnMut(&[MapJob]) -> Vec<Vec<f64>>,
+        sliced: Option<&SlicedScene>,
+    ) -> CellReport {
         let objects = self.scene.objects().len();
         let (cmin, cmax) = (cell.min.as_dvec3(), cell.max.as_dvec3());
         if !(cmin.is_finite() && cmax.is_finite() && cmin.cmple(cmax).all()) {
@@ -426,6 +458,7 @@ impl<'a> Oracle<'a> {
                 inside_solids: 0,
                 projected_from: *cell,
                 times: CellTimes::default(),
+                slices: Vec::new(),
             };
         }
         let slack = self.slack(cmin, cmax);
@@ -502,6 +535,7 @@ impl<'a> Oracle<'a> {
                 inside_solids: 1,
                 projected_from,
                 times,
+                slices: Vec::new(),
             };
         }
         // Placement per face, then every map's occluders, rasterised in one
@@ -698,10 +732,34 @@ impl<'a> Oracle<'a> {
                 hidden.insert(i);
             }
         }
-        times.test = start.elapsed();
         hidden.subtract(&keep);
         let mut visible = ObjectSet::full(objects);
         visible.subtract(&hidden);
+        // Slices of the objects kept, on the same maps and sweeps (not of
+        // those that touch the cell or meet a solid it reaches into).
+        let mut slices = Vec::new();
+        if let Some(sliced) = sliced {
+            let both =
+                |x: DVec3, y: DVec3| on_maps(x, y) || (!sweeps.is_empty() && on_sweeps(x, y));
+            slices = (0..objects)
+                .into_par_iter()
+                .map(|i| {
+                    if !visible.contains(i) || verdicts[i] == 1 || keep.contains(i) {
+                        return None;
+                    }
+                    let o = &self.scene.objects()[i].bounds;
+                    let (lo, hi) = (o.min.as_dvec3(), o.max.as_dvec3());
+                    let pad = slack + 1e-9 * (hi - lo).max_element();
+                    let mut hidden = |a: DVec3, b: DVec3| {
+                        let (a, b) = (a - pad, b + pad);
+                        !(a.cmple(cmax).all() && b.cmpge(cmin).all())
+                            && pieces_hidden(&both, cmin, cmax, a, b)
+                    };
+                    sliced.object(i).best_index(&mut hidden)
+                })
+                .collect();
+        }
+        times.test = start.elapsed();
         CellReport {
             visible,
             hidden_by_parent,
@@ -714,6 +772,7 @@ impl<'a> Oracle<'a> {
             inside_solids: inside.len(),
             projected_from,
             times,
+            slices,
         }
     }
 

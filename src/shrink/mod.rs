@@ -60,6 +60,7 @@ use crate::bitset::ObjectSet;
 use crate::geom::Aabb;
 use crate::oracle::{Cluster, build_clusters, sliced_solids};
 use crate::scene::Scene;
+use crate::slices::{SliceIndex, SlicedScene};
 use shrink_cube::CubeMap;
 use shrink_mesh::{Shrunk, Solid};
 
@@ -178,6 +179,10 @@ pub struct ShrinkReport {
     pub covered: usize,
     /// Where the time went.
     pub times: ShrinkTimes,
+    /// With [`ShrinkOracle::cell_slices`], per object: the slices of a
+    /// kept object proved hidden and the triangles they cull (empty
+    /// otherwise).
+    pub slices: Vec<Option<(SliceIndex, usize)>>,
 }
 
 /// The scene's solids shrunk by one distance (in the order of
@@ -280,6 +285,18 @@ impl<'a> ShrinkOracle<'a> {
     /// coordinates, [`Scene::frame`]). A cell that is not a box (NaN,
     /// infinite, inside out) proves nothing.
     pub fn cell(&self, cell: &Aabb) -> ShrinkReport {
+        self.run(cell, None)
+    }
+
+    /// [`ShrinkOracle::cell`], and for each object it keeps that does not
+    /// touch the cell, the slices proved hidden (papers/004 sec. 3): the
+    /// [`SliceIndex`] that culls the most of its triangles and how many,
+    /// or `None`. The answer's `slices` holds them, one per object.
+    pub fn cell_slices(&self, cell: &Aabb, sliced: &SlicedScene) -> ShrinkReport {
+        self.run(cell, Some(sliced))
+    }
+
+    fn run(&self, cell: &Aabb, sliced: Option<&SlicedScene>) -> ShrinkReport {
         let objects = self.scene.objects().len();
         let (cmin, cmax) = (cell.min.as_dvec3(), cell.max.as_dvec3());
         let mut report = ShrinkReport {
@@ -292,6 +309,7 @@ impl<'a> ShrinkOracle<'a> {
             counts: ShrinkCounts::default(),
             covered: 0,
             times: ShrinkTimes::default(),
+            slices: Vec::new(),
         };
         if !(cmin.is_finite() && cmax.is_finite() && cmin.cmple(cmax).all()) {
             return report;
@@ -352,6 +370,24 @@ impl<'a> ShrinkOracle<'a> {
                 visible.insert(i);
             } else {
                 report.cluster_hidden += 1;
+            }
+        }
+        if let Some(sliced) = sliced {
+            report.slices = vec![None; objects];
+            for i in visible.iter() {
+                let o = &self.scene.objects()[i];
+                let (lo, hi) = (o.bounds.min.as_dvec3(), o.bounds.max.as_dvec3());
+                if (0..3).all(|k| lo[k] <= gmax[k] && hi[k] >= gmin[k]) {
+                    continue;
+                }
+                // Slice boxes grown past the rounding of their sides.
+                let pad = slack + 1e-9 * (hi - lo).max_element();
+                let mut hidden = |a: DVec3, b: DVec3| {
+                    let (a, b) = (a - pad, b + pad);
+                    let near = shrink_geom::point_box_distance(eye, a, b) - slack;
+                    map.box_hidden(a, b, near)
+                };
+                report.slices[i] = sliced.object(i).best_index(&mut hidden);
             }
         }
         report.times.test = start.elapsed();

@@ -304,3 +304,53 @@ fn buildings_stay_on_their_floor_and_hide_the_street_behind_from_low_cells() {
     let high = Aabb::new(Vec3::new(-1.0, -1.0, 60.0), Vec3::new(1.0, 1.0, 62.0));
     assert!(oracle.cell(&high).visible.contains(2));
 }
+
+/// Slices (papers/004 sec. 3) culled by either oracle are never hit by a
+/// ray from the cell, on the city's street cells and small cells.
+#[test]
+fn culled_slices_are_never_hit_by_rays() {
+    use vis5d::oracle::{Oracle, OracleParams, Rasteriser};
+    use vis5d::slices::SlicedScene;
+    for name in ["city.obj", "office.obj"] {
+        let scene = scene::load(committed(name)).unwrap();
+        let tracer = Tracer::new(&scene);
+        let sliced = SlicedScene::new(&scene, 16).unwrap();
+        let shrink = ShrinkOracle::new(&scene, ShrinkParams::default()).unwrap();
+        let extended = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+        let mut rng = Pcg64::seed_from_u64(0x511ce);
+        let (mut culled, mut cells_with_slices) = (0usize, 0);
+        for (label, cell) in cells(&scene, &mut rng) {
+            let a = shrink.cell_slices(&cell, &sliced).slices;
+            let b = extended.cell_slices(&cell, None, &sliced).slices;
+            let rays: Vec<Ray> = (0..50_000)
+                .map(|_| Ray::new(uniform_point(&mut rng, &cell), uniform_direction(&mut rng)))
+                .collect();
+            let mut any = false;
+            for slices in [&a, &b] {
+                for (o, s) in slices.iter().enumerate() {
+                    if let Some((index, n)) = s {
+                        assert_eq!(*n, sliced.object(o).culled_count(*index));
+                        culled += n;
+                        any = true;
+                    }
+                }
+            }
+            cells_with_slices += usize::from(any);
+            for h in tracer.closest_hits(&rays).into_iter().flatten() {
+                let o = h.object as usize;
+                let t = (h.triangle - scene.objects()[o].triangles.start) as usize;
+                for slices in [&a, &b] {
+                    if let Some(Some((index, _))) = slices.get(o) {
+                        assert!(
+                            !sliced.object(o).culled(t, *index),
+                            "{name}, cell {label} {cell:?}: a ray hits triangle {t} of {} in its culled slices {index:?}",
+                            scene.objects()[o].name
+                        );
+                    }
+                }
+            }
+        }
+        eprintln!("{name}: {culled} triangles culled by slices in {cells_with_slices} cells");
+        assert!(culled > 0, "{name}: no slice culled anything");
+    }
+}

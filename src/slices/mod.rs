@@ -1,0 +1,479 @@
+//! The slice-wise structure (papers/004 sec. 3): each object cut into
+//! axis-aligned slices along x, y and z, and, per view cell, the part of a
+//! partially visible object that is hidden, as one slice index per axis.
+//!
+//! **Slices** (sec. 3.2). An object's box is cut into `n` slices of equal
+//! width along each axis (one slice along an axis where the box is
+//! flat). A triangle belongs to every slice its box overlaps (closed:
+//! a triangle ending exactly on a boundary belongs to both sides), so
+//! each triangle is in at least one slice of each axis (the paper's
+//! "each triangle is encoded in at least three slices").
+//!
+//! **The index** (sec. 3.3, Fig. 5). Per axis a signed count: along x,
+//! `+k` says the first `k` slices (from the low end) are hidden, `-k` the
+//! last `k`, and `n` (either sign) all of them; the same along y; along z
+//! (up), `k` says the lowest `k` slices are. The hidden part is the box
+//! those slices make together, and a triangle is culled when all of its
+//! slices on every axis are hidden, that is, when it lies in that box.
+//! This is the paper's three visibility forms (Fig. 2): the lower part
+//! hidden (x and y all, z some: horizontal), one side hidden top to bottom
+//! (x or y some, z all: vertical), and one lower corner (L-shaped).
+//!
+//! **Finding it** (Algorithms 2 and 3, reworked). For each horizontal
+//! axis and each of its ends, the hidden box grows along that axis one
+//! slice at a time while the height of the highest hidden box only goes
+//! down (a box inside a hidden box is hidden): a staircase of at most
+//! `2n` box tests. Of the boxes found (the full-width lower part among
+//! them), the one that culls the most triangles wins: the paper's
+//! "maximally occluded axis" and "occlusion rectangle", chosen by what it
+//! culls. Objects of many triangles (a terrain) are also searched for
+//! hidden lower corners cut along both horizontal axes (the index has a
+//! sign on both). The box test is the caller's (a conservative oracle's box
+//! test), so the slices are as conservative as the oracle.
+//!
+//! Deviations from the paper are in `notes/shrink.md` ("Slices").
+
+use glam::DVec3;
+
+use crate::scene::Scene;
+
+/// The most slices along an axis.
+pub const MAX_SLICES: usize = 255;
+
+/// Why a scene cannot be sliced.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SliceError {
+    /// The slice count is outside 1..=255.
+    #[error("invalid slice count {0}: it must be in 1..={MAX_SLICES}")]
+    Count(usize),
+    /// An object's box is not finite.
+    #[error("object {object} ({name}) cannot be sliced: its box is not finite")]
+    Object {
+        /// The object's index.
+        object: usize,
+        /// Its name.
+        name: String,
+    },
+}
+
+/// The hidden part of an object from a cell: a signed slice count per
+/// axis (see the module's doc). [`SliceIndex::NONE`] hides nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct SliceIndex {
+    /// Along x: `+k` the first `k` slices, `-k` the last `k`.
+    pub x: i16,
+    /// Along y: `+k` the first `k` slices, `-k` the last `k`.
+    pub y: i16,
+    /// Along z: the lowest `z` slices.
+    pub z: u8,
+}
+
+impl SliceIndex {
+    /// Nothing hidden.
+    pub const NONE: SliceIndex = SliceIndex { x: 0, y: 0, z: 0 };
+}
+
+/// One object's slices.
+#[derive(Clone, Debug)]
+pub struct ObjectSlices {
+    /// The object's box.
+    pub min: DVec3,
+    /// The object's box.
+    pub max: DVec3,
+    /// Slices along x, y and z.
+    pub counts: [usize; 3],
+    /// Per triangle (in the object's order), the lowest slice it overlaps
+    /// along each axis.
+    lo: Vec<[u8; 3]>,
+    /// Per triangle, the highest.
+    hi: Vec<[u8; 3]>,
+}
+
+/// Every object of a scene, sliced.
+#[derive(Clone, Debug)]
+pub struct SlicedScene {
+    objects: Vec<ObjectSlices>,
+}
+
+impl SlicedScene {
+    /// Cuts every object of `scene` into `slices` slices along each axis
+    /// (one along an axis where its box is flat).
+    pub fn new(scene: &Scene, slices: usize) -> Result<Self, SliceError> {
+        if !(1..=MAX_SLICES).contains(&slices) {
+            return Err(SliceError::Count(slices));
+        }
+        let objects = (0..scene.objects().len())
+            .map(|o| {
+                let object = &scene.objects()[o];
+                let tris = scene.object_triangles(o);
+                let (min, max) = if tris.is_empty() {
+                    (DVec3::ZERO, DVec3::ZERO)
+                } else {
+                    (object.bounds.min.as_dvec3(), object.bounds.max.as_dvec3())
+                };
+                if !(min.is_finite() && max.is_finite()) {
+                    return Err(SliceError::Object {
+                        object: o,
+                        name: object.name.clone(),
+                    });
+                }
+                let tris: Vec<[DVec3; 3]> = tris.iter().map(|t| t.map(|v| v.as_dvec3())).collect();
+                Ok(ObjectSlices::new(min, max, slices, &tris))
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Self { objects })
+    }
+
+    /// Object `i`'s slices.
+    pub fn object(&self, i: usize) -> &ObjectSlices {
+        &self.objects[i]
+    }
+}
+
+impl ObjectSlices {
+    /// The slices of the triangles `tris` in the box `[min, max]`, `n`
+    /// along each axis where the box has an extent.
+    pub fn new(min: DVec3, max: DVec3, n: usize, tris: &[[DVec3; 3]]) -> Self {
+        let counts = [0, 1, 2].map(|a| if max[a] > min[a] { n } else { 1 });
+        let slice = |a: usize, v: f64| -> u8 {
+            let w = (max[a] - min[a]) / counts[a] as f64;
+            if w > 0.0 {
+                ((v - min[a]) / w)
+                    .floor()
+                    .clamp(0.0, counts[a] as f64 - 1.0) as u8
+            } else {
+                0
+            }
+        };
+        let mut lo = Vec::with_capacity(tris.len());
+        let mut hi = Vec::with_capacity(tris.len());
+        for t in tris {
+            let (a, b) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+            lo.push([0, 1, 2].map(|k| slice(k, a[k])));
+            hi.push([0, 1, 2].map(|k| slice(k, b[k])));
+        }
+        Self {
+            min,
+            max,
+            counts,
+            lo,
+            hi,
+        }
+    }
+
+    /// The triangles (indices into the object's) that overlap slice `i`
+    /// along `axis` (the paper's "slice triangle pointer list", Fig. 4).
+    pub fn slice_triangles(&self, axis: usize, i: usize) -> Vec<u32> {
+        (0..self.lo.len())
+            .filter(|&t| usize::from(self.lo[t][axis]) <= i && i <= usize::from(self.hi[t][axis]))
+            .map(|t| t as u32)
+            .collect()
+    }
+
+    /// The slice range `[from, to)` an index hides along `axis`.
+    fn range(&self, index: SliceIndex, axis: usize) -> (usize, usize) {
+        let n = self.counts[axis];
+        match axis {
+            0 | 1 => {
+                let k = if axis == 0 { index.x } else { index.y };
+                let m = usize::from(k.unsigned_abs()).min(n);
+                if k >= 0 { (0, m) } else { (n - m, n) }
+            }
+            _ => (0, usize::from(index.z).min(n)),
+        }
+    }
+
+    /// The box an index hides (empty when it hides nothing).
+    pub fn hidden_box(&self, index: SliceIndex) -> Option<(DVec3, DVec3)> {
+        let mut a = self.min;
+        let mut b = self.max;
+        for axis in 0..3 {
+            let (from, to) = self.range(index, axis);
+            if from >= to {
+                return None;
+            }
+            let w = (self.max[axis] - self.min[axis]) / self.counts[axis] as f64;
+            a[axis] = self.min[axis] + w * from as f64;
+            b[axis] = if to == self.counts[axis] {
+                self.max[axis]
+            } else {
+                self.min[axis] + w * to as f64
+            };
+        }
+        Some((a, b))
+    }
+
+    /// Whether triangle `t` is culled by `index` (it lies in the hidden
+    /// box).
+    pub fn culled(&self, t: usize, index: SliceIndex) -> bool {
+        (0..3).all(|axis| {
+            let (from, to) = self.range(index, axis);
+            usize::from(self.lo[t][axis]) >= from && usize::from(self.hi[t][axis]) < to
+        })
+    }
+
+    /// The number of triangles `index` culls.
+    pub fn culled_count(&self, index: SliceIndex) -> usize {
+        (0..self.lo.len())
+            .filter(|&t| self.culled(t, index))
+            .count()
+    }
+
+    /// The index that culls the most triangles among those the staircase
+    /// search finds, with the count; `hidden(a, b)` must say whether the
+    /// box `[a, b]` is hidden from the cell (conservatively). `None` when
+    /// no slice box is hidden.
+    pub fn best_index(
+        &self,
+        hidden: &mut dyn FnMut(DVec3, DVec3) -> bool,
+    ) -> Option<(SliceIndex, usize)> {
+        let [nx, ny, nz] = self.counts;
+        // Counts of triangles by (slices hidden along the axis from one
+        // end, slices hidden from the bottom): cumulative tables.
+        let table = |axis: usize, from_low: bool| -> Vec<u32> {
+            let n = self.counts[axis];
+            let mut t = vec![0u32; (n + 1) * (nz + 1)];
+            for k in 0..self.lo.len() {
+                // Slices needed from this end to cover the triangle.
+                let need = if from_low {
+                    usize::from(self.hi[k][axis]) + 1
+                } else {
+                    n - usize::from(self.lo[k][axis])
+                };
+                let up = usize::from(self.hi[k][2]) + 1;
+                t[need * (nz + 1) + up] += 1;
+            }
+            // Prefix sums over both.
+            for i in 0..=n {
+                for j in 0..=nz {
+                    let mut v = t[i * (nz + 1) + j];
+                    if i > 0 {
+                        v += t[(i - 1) * (nz + 1) + j];
+                    }
+                    if j > 0 {
+                        v += t[i * (nz + 1) + j - 1];
+                    }
+                    if i > 0 && j > 0 {
+                        v -= t[(i - 1) * (nz + 1) + j - 1];
+                    }
+                    t[i * (nz + 1) + j] = v;
+                }
+            }
+            t
+        };
+        let mut best: Option<(SliceIndex, usize)> = None;
+        for (axis, n) in [(0usize, nx), (1, ny)] {
+            for from_low in [true, false] {
+                let counts = table(axis, from_low);
+                let mut k = nz;
+                for i in 1..=n {
+                    let index = |i: usize, k: usize| {
+                        let s = if from_low { i as i16 } else { -(i as i16) };
+                        let full = [nx as i16, ny as i16];
+                        let (x, y) = if axis == 0 {
+                            (s, full[1])
+                        } else {
+                            (full[0], s)
+                        };
+                        SliceIndex { x, y, z: k as u8 }
+                    };
+                    while k > 0 {
+                        let (a, b) = self.hidden_box(index(i, k)).expect("a box");
+                        if hidden(a, b) {
+                            break;
+                        }
+                        k -= 1;
+                    }
+                    if k == 0 {
+                        break;
+                    }
+                    let culled = counts[i * (nz + 1) + k] as usize;
+                    if culled > 0 && best.is_none_or(|(_, c)| culled > c) {
+                        best = Some((index(i, k), culled));
+                    }
+                }
+            }
+        }
+        // Objects of many triangles (terrains, big meshes): lower corners
+        // cut along both horizontal axes too, each as a staircase in the
+        // second axis with the height found by bisection.
+        if self.lo.len() >= CORNER_SEARCH_TRIANGLES && nx > 1 && ny > 1 {
+            for (low_x, low_y) in [(true, true), (true, false), (false, true), (false, false)] {
+                let index = |i: usize, j: usize, k: usize| SliceIndex {
+                    x: if low_x { i as i16 } else { -(i as i16) },
+                    y: if low_y { j as i16 } else { -(j as i16) },
+                    z: k as u8,
+                };
+                let mut j_max = ny;
+                for i in 1..nx {
+                    let mut j = j_max;
+                    // The tallest hidden box of width (i, j), by bisection.
+                    let height = |j: usize, hidden: &mut dyn FnMut(DVec3, DVec3) -> bool| {
+                        let (mut lo, mut hi) = (0usize, nz);
+                        while lo < hi {
+                            let mid = (lo + hi).div_ceil(2);
+                            let (a, b) = self.hidden_box(index(i, j, mid)).expect("a box");
+                            if hidden(a, b) {
+                                lo = mid;
+                            } else {
+                                hi = mid - 1;
+                            }
+                        }
+                        lo
+                    };
+                    let mut k = 0;
+                    while j > 0 {
+                        k = height(j, hidden);
+                        if k > 0 {
+                            break;
+                        }
+                        j -= 1;
+                    }
+                    if j == 0 {
+                        break;
+                    }
+                    j_max = j;
+                    let culled = self.culled_count(index(i, j, k));
+                    if culled > 0 && best.is_none_or(|(_, c)| culled > c) {
+                        best = Some((index(i, j, k), culled));
+                    }
+                }
+            }
+        }
+        best
+    }
+}
+
+/// Objects of at least this many triangles are also searched for hidden
+/// lower corners cut along both horizontal axes.
+pub const CORNER_SEARCH_TRIANGLES: usize = 256;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid_object() -> (ObjectSlices, Vec<[DVec3; 3]>) {
+        // A 4 x 4 x 4 box of small triangles, one in each unit cube.
+        let mut tris = Vec::new();
+        for x in 0..4 {
+            for y in 0..4 {
+                for z in 0..4 {
+                    let o = DVec3::new(x as f64, y as f64, z as f64) + 0.25;
+                    tris.push([o, o + DVec3::X * 0.5, o + DVec3::Y * 0.5 + DVec3::Z * 0.5]);
+                }
+            }
+        }
+        (
+            ObjectSlices::new(DVec3::ZERO, DVec3::splat(4.0), 4, &tris),
+            tris,
+        )
+    }
+
+    #[test]
+    fn triangles_belong_to_every_slice_they_overlap() {
+        let tris = vec![
+            [
+                DVec3::ZERO,
+                DVec3::new(2.0, 0.0, 0.0),
+                DVec3::new(0.0, 1.0, 0.0),
+            ],
+            [
+                DVec3::new(3.5, 3.5, 3.5),
+                DVec3::splat(4.0),
+                DVec3::new(4.0, 3.5, 4.0),
+            ],
+        ];
+        let s = ObjectSlices::new(DVec3::ZERO, DVec3::splat(4.0), 4, &tris);
+        // The first spans x slices 0..=2 (it ends on the boundary of 2).
+        assert_eq!(s.slice_triangles(0, 2), vec![0]);
+        assert_eq!(s.slice_triangles(0, 3), vec![1]);
+        assert_eq!(s.slice_triangles(1, 1), vec![0]);
+        assert_eq!(s.slice_triangles(2, 0), vec![0]);
+        // A flat box has one slice along its flat axis.
+        let flat = ObjectSlices::new(DVec3::ZERO, DVec3::new(4.0, 4.0, 0.0), 8, &tris[..1]);
+        assert_eq!(flat.counts, [8, 8, 1]);
+    }
+
+    #[test]
+    fn an_index_culls_exactly_the_triangles_in_its_box() {
+        let (s, tris) = grid_object();
+        for index in [
+            SliceIndex { x: 2, y: 4, z: 1 },
+            SliceIndex { x: -1, y: 4, z: 4 },
+            SliceIndex { x: 4, y: -3, z: 2 },
+            SliceIndex::NONE,
+        ] {
+            let boxed = s.hidden_box(index);
+            for (t, tri) in tris.iter().enumerate() {
+                let inside = boxed.is_some_and(|(a, b)| {
+                    tri.iter()
+                        .all(|p| (0..3).all(|k| p[k] >= a[k] && p[k] <= b[k]))
+                });
+                assert_eq!(s.culled(t, index), inside, "{index:?} {t}");
+            }
+        }
+        assert_eq!(s.culled_count(SliceIndex { x: 2, y: 4, z: 1 }), 8);
+    }
+
+    #[test]
+    fn the_search_finds_the_lower_corner_an_occluder_hides() {
+        let (s, _) = grid_object();
+        // Hidden: whatever lies in x < 3, z < 2 (an occluder on the low x
+        // side, two units tall).
+        let mut tests = 0;
+        let mut hidden = |a: DVec3, b: DVec3| {
+            tests += 1;
+            let _ = a;
+            b.x <= 3.0 && b.z <= 2.0
+        };
+        let (index, culled) = s.best_index(&mut hidden).expect("something hidden");
+        assert_eq!(index, SliceIndex { x: 3, y: 4, z: 2 });
+        assert_eq!(culled, 3 * 4 * 2);
+        assert!(tests <= 4 * (4 + 4), "{tests} box tests");
+        // Nothing hidden: no index.
+        assert!(s.best_index(&mut |_, _| false).is_none());
+        // All hidden: the whole box (counted once).
+        let (index, culled) = s.best_index(&mut |_, _| true).unwrap();
+        assert_eq!(culled, 64, "{index:?}");
+    }
+
+    #[test]
+    fn big_objects_are_searched_for_corners_cut_both_ways() {
+        // 8 x 8 x 4 small triangles (256): an occluder hides x < 2, y > 5
+        // (the high y end), z < 3.
+        let mut tris = Vec::new();
+        for x in 0..8 {
+            for y in 0..8 {
+                for z in 0..4 {
+                    let o = DVec3::new(x as f64, y as f64, z as f64) + 0.25;
+                    tris.push([o, o + DVec3::X * 0.5, o + DVec3::Y * 0.5 + DVec3::Z * 0.5]);
+                }
+            }
+        }
+        let s = ObjectSlices::new(DVec3::ZERO, DVec3::new(8.0, 8.0, 4.0), 8, &tris);
+        // Slices are 1 wide along x and y, 0.5 along z.
+        let mut hidden = |a: DVec3, b: DVec3| b.x <= 2.0 && a.y >= 5.0 && b.z <= 3.0;
+        let (index, culled) = s.best_index(&mut hidden).expect("a corner");
+        assert_eq!(index, SliceIndex { x: 2, y: -3, z: 6 });
+        assert_eq!(culled, 2 * 3 * 3);
+    }
+
+    #[test]
+    fn bad_counts_are_refused() {
+        let scene = crate::scene::procedural::generate(
+            crate::scene::procedural::SceneKind::Apartment,
+            1,
+            1,
+        );
+        assert_eq!(
+            SlicedScene::new(&scene, 0).unwrap_err(),
+            SliceError::Count(0)
+        );
+        assert_eq!(
+            SlicedScene::new(&scene, 256).unwrap_err(),
+            SliceError::Count(256)
+        );
+        let sliced = SlicedScene::new(&scene, 16).unwrap();
+        assert!(sliced.object(0).counts.iter().filter(|c| **c == 16).count() >= 2);
+    }
+}
