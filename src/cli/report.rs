@@ -16,6 +16,7 @@ use vis5d::oracle::{Oracle, OracleParams, Rasteriser};
 use vis5d::query::{Pvs, View};
 use vis5d::render::random_views;
 use vis5d::report::{self, ReportError, ReportParams};
+use vis5d::shrink::{ShrinkOracle, ShrinkParams};
 use vis5d::trace::Tracer;
 
 use crate::common::{check_output, flag, load_scene, progress_bar, read_v5d, read_views};
@@ -64,6 +65,11 @@ pub struct ReportArgs {
     /// Leave the oracle out (it is the slowest method).
     #[arg(long)]
     no_oracle: bool,
+    /// Leave occluder shrinking (papers/004) out; it runs for the same
+    /// cell as the oracle, and a row "oracle and shrinking" shows what
+    /// neither proves hidden.
+    #[arg(long)]
+    no_shrink: bool,
     /// Rasterise the oracle's depth maps on the CPU even when a GPU
     /// adapter exists (the default uses the GPU through wgpu, and the CPU
     /// when there is none).
@@ -220,6 +226,11 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         };
         Some(Oracle::new(&scene, OracleParams::default(), rasteriser)?)
     };
+    let shrink = if args.no_shrink {
+        None
+    } else {
+        Some(ShrinkOracle::new(&scene, ShrinkParams::default())?)
+    };
     let bar = progress_bar("views", views.len() as u64);
     let gpu_warning = GpuWarning::default();
     let experiment = report::run(
@@ -229,7 +240,10 @@ pub fn run(args: &ReportArgs) -> Result<()> {
             tree: &pvs,
             conservative: conservative.as_ref(),
         },
-        oracle.as_ref(),
+        report::Oracles {
+            oracle: oracle.as_ref(),
+            shrink: shrink.as_ref(),
+        },
         &views,
         &params,
         &|done| {

@@ -8,8 +8,9 @@
 //!   view-frustum culling ([`frustum_set`]: the objects whose bounding box
 //!   meets the frustum), the lazy occlusion grid of papers/002, the vis5d
 //!   tree (a `.v5d` queried per view, culled to the frustum by the query
-//!   itself), and the extended-projection oracle of a small cell around the
-//!   eye (restricted to the frustum).
+//!   itself), the extended-projection oracle of a small cell around the
+//!   eye, occluder shrinking for the same cell, and what neither of the two
+//!   proves hidden (each restricted to the frustum).
 //! - **Metrics** ([`ViewMetrics::of`]): objects and triangles drawn, pixels
 //!   whose object is missing (the pixel error), missed objects, and the set
 //!   errors of papers/003: under-estimation `Q_u = |S_E \ S_A| / |S_E|` and
@@ -28,5 +29,5 @@ mod report_run;
 
 pub use report_metrics::{MethodSummary, ViewMetrics, ViewTruth, frustum_set, truth};
 pub use report_run::{
-    Experiment, GridCost, Method, MethodRun, ReportError, ReportParams, Trees, run,
+    Experiment, GridCost, Method, MethodRun, Oracles, ReportError, ReportParams, Trees, run,
 };

@@ -11,6 +11,7 @@ use crate::oracle::Oracle;
 use crate::query::{Pvs, View};
 use crate::render::Camera;
 use crate::scene::Scene;
+use crate::shrink::ShrinkOracle;
 use crate::trace::Tracer;
 
 /// A visibility method a report compares.
@@ -29,16 +30,24 @@ pub enum Method {
     /// The extended-projection oracle of a cube around the eye, within the
     /// frustum.
     Oracle,
+    /// Occluder shrinking (papers/004) for the same cube, within the
+    /// frustum.
+    Shrink,
+    /// What neither the oracle nor the shrinking proves hidden: the union
+    /// of what each does, since each proves what the other cannot.
+    Both,
 }
 
 impl Method {
     /// Every method, in the report's order.
-    pub const ALL: [Method; 5] = [
+    pub const ALL: [Method; 7] = [
         Method::Frustum,
         Method::Tree,
         Method::ConservativeTree,
         Method::LazyGrid,
         Method::Oracle,
+        Method::Shrink,
+        Method::Both,
     ];
 
     /// The method's name in tables and JSON.
@@ -49,6 +58,8 @@ impl Method {
             Method::ConservativeTree => "conservative tree",
             Method::LazyGrid => "lazy grid",
             Method::Oracle => "oracle",
+            Method::Shrink => "shrinking",
+            Method::Both => "oracle and shrinking",
         }
     }
 
@@ -70,6 +81,14 @@ impl Method {
             }
             Method::Oracle => {
                 "the extended-projection oracle of a cube around the eye, within the frustum"
+            }
+            Method::Shrink => {
+                "occluder shrinking (papers/004) for the same cube: closed solids shrunk by its \
+                 half diagonal, objects tested from its centre, within the frustum"
+            }
+            Method::Both => {
+                "what neither the oracle nor the shrinking proves hidden (each proves what the \
+                 other cannot), within the frustum; its time is the sum of theirs"
             }
         }
     }
@@ -268,16 +287,25 @@ pub struct Trees<'a> {
     pub conservative: Option<&'a Pvs>,
 }
 
+/// The conservative oracles a report runs for a cube around each eye.
+#[derive(Clone, Copy, Default)]
+pub struct Oracles<'a, 'b> {
+    /// The extended-projection oracle (papers/001).
+    pub oracle: Option<&'a Oracle<'b>>,
+    /// Occluder shrinking (papers/004).
+    pub shrink: Option<&'a ShrinkOracle<'b>>,
+}
+
 /// Runs the experiment on `views` of `scene` (traced by `tracer`): for
 /// each view, the ground truth ([`truth`]), then every method: frustum
 /// culling, the trees (built for `scene`), the lazy grid (lazy, then busy for its costs), and the
-/// `oracle` when given. `progress` gets the
+/// `oracles` given (and their intersection when both are). `progress` gets the
 /// number of views done.
 pub fn run(
     scene: &Scene,
     tracer: &Tracer,
     trees: Trees,
-    oracle: Option<&Oracle>,
+    oracles: Oracles,
     views: &[View],
     params: &ReportParams,
     progress: &dyn Fn(usize),
@@ -290,6 +318,7 @@ pub fn run(
         tree: pvs,
         conservative,
     } = trees;
+    let Oracles { oracle, shrink } = oracles;
     for tree in std::iter::once(pvs).chain(conservative) {
         tree.check_fingerprint(scene.fingerprint())
             .map_err(|e| ReportError::WrongScene {
@@ -310,6 +339,8 @@ pub fn run(
     let mut runs: Vec<MethodRun> = Method::ALL
         .iter()
         .filter(|&&m| m != Method::Oracle || oracle.is_some())
+        .filter(|&&m| m != Method::Shrink || shrink.is_some())
+        .filter(|&&m| m != Method::Both || (oracle.is_some() && shrink.is_some()))
         .filter(|&&m| m != Method::ConservativeTree || conservative.is_some())
         .map(|&m| MethodRun::new(m))
         .collect();
@@ -319,7 +350,7 @@ pub fn run(
         truth_seconds: 0.0,
         methods: Vec::new(),
         grid_costs: Vec::with_capacity(views.len()),
-        oracle_cell: oracle.map(|_| 2.0 * half),
+        oracle_cell: (oracle.is_some() || shrink.is_some()).then_some(2.0 * half),
         oracle_rasteriser: oracle.map(|o| o.rasteriser().name()),
     };
     let (mut set, mut frustum) = (ObjectSet::new(n), ObjectSet::new(n));
@@ -367,13 +398,26 @@ pub fn run(
             busy_ms: 1e3 * start.elapsed().as_secs_f64(),
         });
 
+        let cell = Aabb::new(view.position - half, view.position + half);
+        let mut extended = None;
         if let Some(oracle) = oracle {
             let start = Instant::now();
-            let cell = Aabb::new(view.position - half, view.position + half);
             let mut kept = oracle.cell(&cell, None).visible;
             kept.intersect_with(&frustum);
             let s = start.elapsed().as_secs_f64() + frustum_seconds;
             run_of(&mut runs, Method::Oracle).record(scene, &t, &kept, s);
+            extended = Some((kept, s));
+        }
+        if let Some(shrink) = shrink {
+            let start = Instant::now();
+            let mut kept = shrink.cell(&cell).visible;
+            kept.intersect_with(&frustum);
+            let s = start.elapsed().as_secs_f64() + frustum_seconds;
+            run_of(&mut runs, Method::Shrink).record(scene, &t, &kept, s);
+            if let Some((mut both, s0)) = extended {
+                both.intersect_with(&kept);
+                run_of(&mut runs, Method::Both).record(scene, &t, &both, s0 + s);
+            }
         }
         out.truths.push(t);
         progress(i + 1);

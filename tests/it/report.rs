@@ -37,7 +37,45 @@ fn report_writes_consistent_figures() {
         .iter()
         .map(|m| m["name"].as_str().unwrap())
         .collect();
-    assert_eq!(names, ["frustum", "vis5d", "lazy grid", "oracle"]);
+    assert_eq!(
+        names,
+        [
+            "frustum",
+            "vis5d",
+            "lazy grid",
+            "oracle",
+            "shrinking",
+            "oracle and shrinking"
+        ]
+    );
+    // Both together draw no more than either, view by view.
+    let per_view = |name: &str| -> Vec<u64> {
+        j["methods"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|m| m["name"] == name)
+            .unwrap()["per_view"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v["objects"].as_u64().unwrap())
+            .collect()
+    };
+    let (o, s, b) = (
+        per_view("oracle"),
+        per_view("shrinking"),
+        per_view("oracle and shrinking"),
+    );
+    for v in 0..o.len() {
+        assert!(
+            b[v] <= o[v].min(s[v]),
+            "view {v}: {} {} {}",
+            o[v],
+            s[v],
+            b[v]
+        );
+    }
     assert_eq!(j["views"].as_array().unwrap().len(), 6);
     for m in j["methods"].as_array().unwrap() {
         let per_view = m["per_view"].as_array().unwrap();
@@ -103,6 +141,7 @@ fn report_takes_a_tree_and_a_camera_path_and_refuses_bad_input() {
             "--views",
             views.to_str().unwrap(),
             "--no-oracle",
+            "--no-shrink",
         ],
     );
     assert_eq!(j["views"].as_array().unwrap().len(), 2);
