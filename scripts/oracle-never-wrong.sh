@@ -9,13 +9,16 @@
 # anywhere in the scene's box (geometry in them or not, 4 sizes).
 # METHOD shrink checks occluder shrinking (papers/004, issue 14) instead,
 # on the CPU (it has no GPU path yet); both checks what neither proves.
+# SLICES N > 0 also culls the hidden slices of kept objects (papers/004
+# sec. 3, N slices an axis) and checks that no ray hits a culled triangle.
 #
-#   scripts/oracle-never-wrong.sh [CELLS] [RAYS] [extended|shrink|both]
+#   scripts/oracle-never-wrong.sh [CELLS] [RAYS] [extended|shrink|both] [SLICES]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cells=${1:-5}
 rays=${2:-1000000}
 method=${3:-extended}
+slices=${4:-0}
 cargo build --release --quiet --example street_cells
 bin=${CARGO_TARGET_DIR:-target}/release/examples/street_cells
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
@@ -45,7 +48,7 @@ for model in "${models[@]}"; do
         for kind in "${kinds[@]}"; do
             IFS='|' read -r flag size <<< "$kind"
             # shellcheck disable=SC2086
-            if line=$($bin "$model" "$cells" $size $flag $gpu --rays "$rays" --method "$method" 2>&1 | tail -1); then
+            if line=$($bin "$model" "$cells" $size $flag $gpu --rays "$rays" --method "$method" --slices "$slices" 2>&1 | grep '^mean over\|error' | tail -1); then
                 echo "$name | $method $raster | ${flag:-street} $size | ${line#mean over }"
             elif [[ "$line" == *"found no place"* ]]; then
                 echo "$name | $raster | ${flag:-street} $size | no such cell in this scene"

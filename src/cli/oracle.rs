@@ -155,6 +155,13 @@ pub struct OracleArgs {
     /// apply).
     #[arg(long, value_enum, default_value_t = Method::Extended)]
     method: Method,
+    /// Slices (papers/004 sec. 3): cut every object into N slices along
+    /// each axis and, for each object kept, find the lower part of it
+    /// that is proved hidden, as one slice index per axis (`+k` the first
+    /// k slices along x or y, `-k` the last k, and the lowest k along z);
+    /// prints each and the triangles it culls [0 (off) to 255].
+    #[arg(long, default_value_t = 0)]
+    slices: usize,
     #[command(flatten)]
     flags: OracleFlags,
     /// Print as JSON: the objects, the planes and the timings.
@@ -205,7 +212,77 @@ struct OracleJson<'a> {
     inside_solids: usize,
     /// The part of the cell the projections ran from (world coordinates).
     projected_from: [[f64; 3]; 2],
+    /// With --slices: the kept objects with slices proved hidden.
+    slices: Vec<SliceJson<'a>>,
     seconds: Seconds,
+}
+
+/// A kept object's hidden slices.
+#[derive(Serialize)]
+struct SliceJson<'a> {
+    object: &'a str,
+    /// The index: [x, y, z] (see --slices).
+    index: [i16; 3],
+    triangles: usize,
+    culled: usize,
+}
+
+/// The kept objects' hidden slices, as JSON rows.
+fn slice_rows<'a>(
+    scene: &'a vis5d::scene::Scene,
+    slices: &[Option<(vis5d::slices::SliceIndex, usize)>],
+) -> Vec<SliceJson<'a>> {
+    slices
+        .iter()
+        .enumerate()
+        .filter_map(|(o, s)| {
+            s.map(|(i, culled)| SliceJson {
+                object: scene.objects()[o].name.as_str(),
+                index: [i.x, i.y, i16::from(i.z)],
+                triangles: scene.objects()[o].triangle_count(),
+                culled,
+            })
+        })
+        .collect()
+}
+
+/// Prints the slice rows.
+fn write_slices(out: &mut impl Write, rows: &[SliceJson]) -> io::Result<()> {
+    if rows.is_empty() {
+        return Ok(());
+    }
+    let culled: usize = rows.iter().map(|r| r.culled).sum();
+    writeln!(
+        out,
+        "  slices: {} kept objects partly hidden, {culled} of their triangles culled",
+        rows.len()
+    )?;
+    for r in rows {
+        writeln!(
+            out,
+            "    {} [{}, {}, {}]: {} of {} triangles culled",
+            printable(r.object),
+            r.index[0],
+            r.index[1],
+            r.index[2],
+            r.culled,
+            r.triangles
+        )?;
+    }
+    Ok(())
+}
+
+/// The scene sliced as `--slices` asks, if it does.
+fn sliced_scene(
+    scene: &vis5d::scene::Scene,
+    args: &OracleArgs,
+) -> Result<Option<vis5d::slices::SlicedScene>> {
+    if args.slices == 0 {
+        return Ok(None);
+    }
+    vis5d::slices::SlicedScene::new(scene, args.slices)
+        .map(Some)
+        .map_err(|e| anyhow!("--slices: {e}"))
 }
 
 #[derive(Serialize)]
@@ -230,7 +307,11 @@ pub fn run(args: &OracleArgs) -> Result<()> {
     let oracle = Oracle::new(&scene, params, rasteriser)?;
     let prepare = start.elapsed().as_secs_f64();
     let frame = scene.frame();
-    let report: CellReport = oracle.cell(&args.cell.to_local(&frame), None);
+    let sliced = sliced_scene(&scene, args)?;
+    let report: CellReport = match &sliced {
+        Some(s) => oracle.cell_slices(&args.cell.to_local(&frame), None, s),
+        None => oracle.cell(&args.cell.to_local(&frame), None),
+    };
     GpuWarning::default().finish(oracle.rasteriser());
     let names: Vec<&str> = report
         .visible
@@ -277,6 +358,7 @@ pub fn run(args: &OracleArgs) -> Result<()> {
             frame.to_world(report.projected_from.min).to_array(),
             frame.to_world(report.projected_from.max).to_array(),
         ],
+        slices: slice_rows(&scene, &report.slices),
         seconds: Seconds {
             load,
             prepare,
@@ -349,6 +431,7 @@ pub fn run(args: &OracleArgs) -> Result<()> {
             json.shaft_hidden
         )?;
     }
+    write_slices(&mut out, &json.slices)?;
     writeln!(
         out,
         "potentially visible: {} of {} objects ({:.1}% proved hidden; {} touch the cell)",
@@ -391,6 +474,8 @@ struct ShrinkJson<'a> {
     faces: FacesJson,
     covered_pixels: usize,
     cluster_hidden: usize,
+    /// With --slices: the kept objects with slices proved hidden.
+    slices: Vec<SliceJson<'a>>,
     seconds: ShrinkSeconds,
 }
 
@@ -429,7 +514,11 @@ fn run_shrink(args: &OracleArgs) -> Result<()> {
     let oracle = ShrinkOracle::new(&scene, params)?;
     let prepare = start.elapsed().as_secs_f64();
     let frame = scene.frame();
-    let report = oracle.cell(&args.cell.to_local(&frame));
+    let sliced = sliced_scene(&scene, args)?;
+    let report = match &sliced {
+        Some(s) => oracle.cell_slices(&args.cell.to_local(&frame), s),
+        None => oracle.cell(&args.cell.to_local(&frame)),
+    };
     let names: Vec<&str> = report
         .visible
         .iter()
@@ -460,6 +549,7 @@ fn run_shrink(args: &OracleArgs) -> Result<()> {
         },
         covered_pixels: report.covered,
         cluster_hidden: report.cluster_hidden,
+        slices: slice_rows(&scene, &report.slices),
         seconds: ShrinkSeconds {
             load,
             prepare,
@@ -504,6 +594,7 @@ fn run_shrink(args: &OracleArgs) -> Result<()> {
             json.cluster_hidden
         )?;
     }
+    write_slices(&mut out, &json.slices)?;
     writeln!(
         out,
         "potentially visible: {} of {} objects ({:.1}% proved hidden; {} touch the cell)",

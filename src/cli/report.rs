@@ -280,7 +280,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     for (name, s) in &summaries {
         writeln!(
             out,
-            "  {:<17} {:>8.1} objects per view, geometry ratio {}, pixel error {} (worst view {}), {} distinct objects missed",
+            "  {:<20} {:>8.1} objects per view, geometry ratio {}, pixel error {} (worst view {}), {} distinct objects missed",
             name,
             s.mean_objects,
             s.geometry_ratio.map_or("n/a".into(), |g| format!("{g:.2}")),

@@ -228,6 +228,53 @@ fn oracle_command_runs_the_shrinking_and_refuses_bad_input() {
         t.contains("shrunk by") && t.contains("potentially visible"),
         "{t}"
     );
+    // Slices, with either method.
+    for method in ["extended", "shrink"] {
+        let out = vis5d(&[
+            "oracle",
+            "scenes/city.obj",
+            "--cell",
+            "272.8,111,1,278.8,117,3",
+            "--method",
+            method,
+            "--slices",
+            "16",
+            "--json",
+        ]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let rows = j["slices"].as_array().unwrap();
+        for r in rows {
+            assert!(r["culled"].as_u64() <= r["triangles"].as_u64(), "{r}");
+            assert!(r["culled"].as_u64().unwrap() > 0, "{r}");
+            let name = r["object"].as_str().unwrap();
+            assert!(
+                j["potentially_visible"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .any(|n| n == name),
+                "{r}: slices only of kept objects"
+            );
+        }
+        if method == "extended" {
+            assert!(!rows.is_empty(), "{j}");
+        }
+    }
+    let out = vis5d(&[
+        "oracle",
+        "scenes/city.obj",
+        "--cell",
+        cell,
+        "--slices",
+        "256",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("--slices: invalid slice count 256"),
+        "{}",
+        text(&out.stderr)
+    );
     for (args, message) in [
         (
             vec![
