@@ -70,6 +70,13 @@ pub struct ReportArgs {
     /// neither proves hidden.
     #[arg(long)]
     no_shrink: bool,
+    /// Slices (papers/004 sec. 3) for the oracle's and the shrinking's
+    /// rows: every object cut into N slices an axis; the hidden slices of
+    /// each kept object are culled too, and the triangles drawn at slice
+    /// granularity are reported beside those at object granularity [0
+    /// (off) to 255].
+    #[arg(long, default_value_t = 0)]
+    slices: usize,
     /// Rasterise the oracle's depth maps on the CPU even when a GPU
     /// adapter exists (the default uses the GPU through wgpu, and the CPU
     /// when there is none).
@@ -92,6 +99,7 @@ impl ReportArgs {
             resolution: self.resolution,
             grid_cell: self.grid_cell,
             oracle_cell: self.oracle_cell,
+            slices: self.slices,
         };
         params.validate().map_err(|e| match &e {
             ReportError::Parameter { name, .. } => anyhow!("{}: {e}", flag(name)),

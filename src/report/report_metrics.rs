@@ -77,6 +77,10 @@ pub struct ViewMetrics {
     /// Objects the view shows, `|S_E|` (when 0, `q_u`, `q_o` and the
     /// pixel error are undefined, and left out of means).
     pub seen: usize,
+    /// Triangles drawn at slice granularity (papers/004 sec. 3): those of
+    /// the objects drawn less what their hidden slices cull; `None` for a
+    /// method without slices or when the report was run without them.
+    pub slice_triangles: Option<u64>,
 }
 
 impl ViewMetrics {
@@ -118,6 +122,7 @@ impl ViewMetrics {
             q_o: share(extra),
             seconds,
             seen,
+            slice_triangles: None,
         }
     }
 }
@@ -157,6 +162,9 @@ pub struct MethodSummary {
     pub mean_q_o: f64,
     /// Milliseconds per view, mean.
     pub mean_ms_per_view: f64,
+    /// Mean triangles drawn per view at slice granularity, when every
+    /// view had slices ([`ViewMetrics::slice_triangles`]).
+    pub mean_slice_triangles: Option<f64>,
 }
 
 impl MethodSummary {
@@ -192,6 +200,12 @@ impl MethodSummary {
             mean_q_u: defined.iter().map(|v| v.q_u).sum::<f64>() / d,
             mean_q_o: defined.iter().map(|v| v.q_o).sum::<f64>() / d,
             mean_ms_per_view: 1e3 * views.iter().map(|v| v.seconds).sum::<f64>() / n,
+            mean_slice_triangles: views
+                .iter()
+                .map(|v| v.slice_triangles)
+                .sum::<Option<u64>>()
+                .filter(|_| !views.is_empty())
+                .map(|t| t as f64 / n),
         }
     }
 }

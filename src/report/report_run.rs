@@ -12,6 +12,7 @@ use crate::query::{Pvs, View};
 use crate::render::Camera;
 use crate::scene::Scene;
 use crate::shrink::ShrinkOracle;
+use crate::slices::{SliceIndex, SlicedScene};
 use crate::trace::Tracer;
 
 /// A visibility method a report compares.
@@ -105,6 +106,11 @@ pub struct ReportParams {
     /// Side of the oracle's cube around each eye, as a share of the
     /// scene's diagonal.
     pub oracle_cell: f32,
+    /// Slices an axis (papers/004 sec. 3) for the oracles' rows: each
+    /// kept object's hidden slices are culled too, and the triangles drawn
+    /// at slice granularity reported beside those at object granularity
+    /// (0: none; at most 255).
+    pub slices: usize,
 }
 
 impl Default for ReportParams {
@@ -113,6 +119,7 @@ impl Default for ReportParams {
             resolution: 512,
             grid_cell: 32,
             oracle_cell: 0.01,
+            slices: 0,
         }
     }
 }
@@ -134,6 +141,9 @@ impl ReportParams {
                 "between 1 and the resolution",
                 &self.grid_cell,
             ));
+        }
+        if self.slices > crate::slices::MAX_SLICES {
+            return Err(bad("slices", "between 0 (none) and 255", &self.slices));
         }
         if !(self.oracle_cell.is_finite() && self.oracle_cell > 0.0) {
             return Err(bad(
@@ -216,6 +226,31 @@ impl MethodRun {
                 .filter(|&o| !drawn.contains(o as usize))
                 .collect(),
         );
+    }
+
+    /// [`MethodRun::record`], with the triangles drawn at slice
+    /// granularity when `with_slices`: the drawn objects' triangles less
+    /// what `slices` (per object, the hidden slices and the triangles they
+    /// cull) culls.
+    fn record_slices(
+        &mut self,
+        scene: &Scene,
+        truth: &ViewTruth,
+        drawn: &ObjectSet,
+        seconds: f64,
+        slices: &[Option<(SliceIndex, usize)>],
+        with_slices: bool,
+    ) {
+        self.record(scene, truth, drawn, seconds);
+        if with_slices {
+            let culled: u64 = drawn
+                .iter()
+                .filter_map(|o| slices.get(o).copied().flatten())
+                .map(|(_, n)| n as u64)
+                .sum();
+            let last = self.per_view.last_mut().expect("just recorded");
+            last.slice_triangles = Some(last.triangles - culled);
+        }
     }
 
     /// The method's figures over the views, its geometry ratio against
@@ -345,6 +380,17 @@ pub fn run(
         .map(|&m| MethodRun::new(m))
         .collect();
     let grid = LazyGrid::new(scene);
+    let sliced = if params.slices > 0 && (oracle.is_some() || shrink.is_some()) {
+        Some(
+            SlicedScene::new(scene, params.slices).map_err(|e| ReportError::Parameter {
+                name: "slices",
+                expected: "a scene whose objects can be sliced",
+                value: e.to_string(),
+            })?,
+        )
+    } else {
+        None
+    };
     let mut out = Experiment {
         truths: Vec::with_capacity(views.len()),
         truth_seconds: 0.0,
@@ -402,21 +448,60 @@ pub fn run(
         let mut extended = None;
         if let Some(oracle) = oracle {
             let start = Instant::now();
-            let mut kept = oracle.cell(&cell, None).visible;
+            let r = match &sliced {
+                Some(sl) => oracle.cell_slices(&cell, None, sl),
+                None => oracle.cell(&cell, None),
+            };
+            let mut kept = r.visible;
             kept.intersect_with(&frustum);
             let s = start.elapsed().as_secs_f64() + frustum_seconds;
-            run_of(&mut runs, Method::Oracle).record(scene, &t, &kept, s);
-            extended = Some((kept, s));
+            run_of(&mut runs, Method::Oracle).record_slices(
+                scene,
+                &t,
+                &kept,
+                s,
+                &r.slices,
+                sliced.is_some(),
+            );
+            extended = Some((kept, s, r.slices));
         }
         if let Some(shrink) = shrink {
             let start = Instant::now();
-            let mut kept = shrink.cell(&cell).visible;
+            let r = match &sliced {
+                Some(sl) => shrink.cell_slices(&cell, sl),
+                None => shrink.cell(&cell),
+            };
+            let mut kept = r.visible;
             kept.intersect_with(&frustum);
             let s = start.elapsed().as_secs_f64() + frustum_seconds;
-            run_of(&mut runs, Method::Shrink).record(scene, &t, &kept, s);
-            if let Some((mut both, s0)) = extended {
+            run_of(&mut runs, Method::Shrink).record_slices(
+                scene,
+                &t,
+                &kept,
+                s,
+                &r.slices,
+                sliced.is_some(),
+            );
+            if let Some((mut both, s0, mut slices)) = extended {
                 both.intersect_with(&kept);
-                run_of(&mut runs, Method::Both).record(scene, &t, &both, s0 + s);
+                // Per object, the slices that cull more.
+                if slices.is_empty() {
+                    slices = r.slices;
+                } else {
+                    for (a, b) in slices.iter_mut().zip(r.slices) {
+                        if b.is_some_and(|(_, n)| a.is_none_or(|(_, m)| n > m)) {
+                            *a = b;
+                        }
+                    }
+                }
+                run_of(&mut runs, Method::Both).record_slices(
+                    scene,
+                    &t,
+                    &both,
+                    s0 + s,
+                    &slices,
+                    sliced.is_some(),
+                );
             }
         }
         out.truths.push(t);

@@ -266,3 +266,35 @@ fn the_page_loads_in_headless_chromium() {
         png.len()
     );
 }
+
+#[test]
+fn report_counts_triangles_at_slice_granularity() {
+    let dir = tempfile::tempdir().unwrap();
+    let j = small_report(dir.path(), &["--slices", "8"]);
+    for m in j["methods"].as_array().unwrap() {
+        let s = &m["summary"];
+        match m["name"].as_str().unwrap() {
+            "oracle" | "shrinking" | "oracle and shrinking" => {
+                let t = s["mean_slice_triangles"].as_f64().expect("slices counted");
+                assert!(t <= s["mean_triangles"].as_f64().unwrap() + 1e-9, "{m}");
+            }
+            _ => assert!(s["mean_slice_triangles"].is_null(), "{m}"),
+        }
+    }
+    let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    assert!(md.contains("(slices: "), "{md}");
+    let out = vis5d(&[
+        "report",
+        "scenes/machine.obj",
+        "-o",
+        dir.path().join("bad").to_str().unwrap(),
+        "--slices",
+        "300",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("--slices"),
+        "{}",
+        text(&out.stderr)
+    );
+}
