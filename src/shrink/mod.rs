@@ -201,7 +201,7 @@ pub struct ShrinkOracle<'a> {
     /// on its floor (drawn too for cells above that floor).
     twins: Vec<Option<usize>>,
     clusters: Vec<Vec<Cluster>>,
-    cache: Mutex<HashMap<u64, Arc<ShrunkSet>>>,
+    cache: Mutex<HashMap<(u64, u64), Arc<ShrunkSet>>>,
 }
 
 impl<'a> ShrinkOracle<'a> {
@@ -254,11 +254,18 @@ impl<'a> ShrinkOracle<'a> {
         8.0 * f32::EPSILON as f64 * scale
     }
 
-    /// The solids shrunk by the step at or above `e`.
+    /// The solids shrunk by the step at or above `e`, with `margin` (the
+    /// cache is keyed by both).
     fn shrunk(&self, e: f64, margin: f64) -> (Arc<ShrunkSet>, f64, Duration) {
-        let step = (8.0 * e.log2()).ceil();
-        let key = step.to_bits();
-        let e = (step / 8.0).exp2().max(e);
+        // The step's distance, never below `e` (a step up where rounding
+        // put it a hair under), so that every cell of the step is shrunk
+        // by the same distance, at least its own.
+        let mut step = (8.0 * e.log2()).ceil();
+        if (step / 8.0).exp2() < e {
+            step += 1.0;
+        }
+        let e = (step / 8.0).exp2();
+        let key = (step.to_bits(), margin.to_bits());
         if let Some(set) = self.cache.lock().expect("cache lock").get(&key) {
             return (Arc::clone(set), e, Duration::ZERO);
         }

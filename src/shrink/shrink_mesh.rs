@@ -153,8 +153,9 @@ pub struct Edge {
 
 impl Solid {
     /// The solid of a closed (or open-at-the-bottom) welded mesh given as
-    /// triangles of bit-identical shared corners, oriented either way; `None`
-    /// when it encloses no volume.
+    /// triangles of bit-identical shared corners, wound consistently either
+    /// way; `None` when it is not closed (every edge once each way, but
+    /// for a floor's edges in its plane) or encloses no volume.
     pub fn new(triangles: &[[DVec3; 3]], floor: Option<f64>) -> Option<Self> {
         let mut index: HashMap<[u64; 3], u32> = HashMap::new();
         let mut vertices = Vec::new();
@@ -173,6 +174,22 @@ impl Solid {
             .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), &p| {
                 (a.min(p), b.max(p))
             });
+        // Closed: every edge has one twin in the other direction (the
+        // winding consistent), but for the edges of a floor in its plane.
+        let mut directed: HashMap<(u32, u32), u32> = HashMap::with_capacity(3 * tris.len());
+        for t in &tris {
+            for k in 0..3 {
+                *directed.entry((t[k], t[(k + 1) % 3])).or_insert(0) += 1;
+            }
+        }
+        for (&(a, b), &count) in &directed {
+            let twin = directed.get(&(b, a)).copied().unwrap_or(0);
+            let on_floor =
+                floor.is_some_and(|f| vertices[a as usize].z == f && vertices[b as usize].z == f);
+            if count != 1 || (twin != 1 && !(twin == 0 && on_floor)) {
+                return None;
+            }
+        }
         // Signed volume about a point of the floor plane (a floor's
         // triangles would add nothing there), or the box's centre.
         let o = match floor {
@@ -589,6 +606,20 @@ pub(crate) mod tests {
         let (shrunk, counts) = Solid::new(&inward, None).unwrap().shrink(1.0, 1e-6);
         assert_eq!(counts.kept, 12);
         assert!((shrunk.bounds().1 - DVec3::splat(3.0)).abs().max_element() < 1e-5);
+    }
+
+    #[test]
+    fn open_meshes_are_not_solids() {
+        let mut tris = box_triangles(DVec3::ZERO, DVec3::ONE);
+        // A hole in the top (faces 2 and 3 are z = 1).
+        tris.remove(2);
+        assert!(Solid::new(&tris, None).is_none());
+        // Open at the top is no floor either.
+        assert!(Solid::new(&tris, Some(0.0)).is_none());
+        // Two faces wound against their neighbours.
+        let mut flipped = box_triangles(DVec3::ZERO, DVec3::ONE);
+        flipped[0].swap(1, 2);
+        assert!(Solid::new(&flipped, None).is_none());
     }
 
     #[test]
