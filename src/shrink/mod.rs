@@ -14,23 +14,34 @@
 //! **Why it is conservative.** Let `s` be a point of a kept shrunk face
 //! of solid `X`: the open ball of radius `e` around it lies inside `X`
 //! (the erosion check of `shrink_mesh.rs`). Let `p` be a point of an
-//! object with `s` strictly between `c` and `p` on the segment `c p`,
-//! `s = c + l (p - c)`, `0 < l < 1`. For a viewpoint `c' = c + v` of the
-//! cell, `|v| <= e`, the segment `c' p` passes through `s' = s + (1 - l)
-//! v`, within `e` of `s`, so inside `X`. The cell lies outside `X`'s box,
+//! object with `s` strictly between `c` and `p` on the segment `c p` (any
+//! such `s`, not only the first), `s = c + l (p - c)`, `0 < l < 1`. For a
+//! viewpoint `c' = c + v` of the cell, `|v| <= e`, the segment `c' p`
+//! passes through `s' = s + (1 - l) v`, within `e` of `s`, so inside `X`. The cell lies outside `X`'s box,
 //! so `c'` is outside `X`, and the segment crosses `X`'s surface between
-//! `c'` and `s'`: `p` is hidden from `c'`. For a solid open at the
-//! bottom, closed by a virtual floor at `f`, the crossing is on a real
-//! face when `c'` and `p` are both above `f` (the segment stays above the
-//! floor's plane but for `p` when `p` is on it): solids are used only for
-//! cells above their floor, and a pixel's `F` keeps occludees reaching
-//! below the floors behind it visible. The cube map gives the `s`: in a covered pixel every ray from
+//! `c'` and `s'`: `p` is hidden from `c'`.
+//!
+//! **Solids on a floor** (see `Solid` in `shrink_mesh.rs`: footprints
+//! without a floor, and a closed solid with a flat bottom shrunk a second
+//! way) are shrunk as `X u H`, `H` the half-space `z <= f` below the
+//! floor, so `s'` lies in `X u H`. They are drawn only for cells above
+//! `f`, and hide only occludee points `p` at or above `f`: then every
+//! point of the segment `c' p` but `p` is above `f`, so `s'` (with `l < 1`)
+//! is in `X`, and the segment from `c'` to `s'` crosses a real face of `X`
+//! (it cannot reach the floor's plane). A pixel keeps apart the depth of
+//! the solids not on floors, which binds any occludee, and the depth of
+//! all with the floor `F` of the one it came from, which binds occludees
+//! whose lowest point is at or above `F`.
+//!
+//! **The cube map gives the `s`**: in a covered pixel every ray from
 //! `c` meets a kept face within `D`, so every point `p` of the pixel
 //! farther than `D` has one. An object is hidden when every pixel its
 //! box (or each of its triangle clusters' boxes) touches is covered with
-//! a `D` below the box's distance from `c`. The object's own shrunk
-//! faces may be among those met: the ray then enters the object itself
-//! before `D`, which the box's distance already rules out. Margins: the
+//! a `D` below the box's distance from `c`. The `s` may lie on the
+//! object's own shrunk faces: the segment then crosses the object's own
+//! surface before `p`, and `p` is still not the first point `c'` sees. So
+//! no point of a hidden object is the first hit of a segment from the
+//! cell. Margins: the
 //! erosion check keeps faces `e` plus the tracer's slack from the
 //! surface; touching in the cube map is widened, never narrowed.
 //!
