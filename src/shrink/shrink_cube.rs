@@ -60,8 +60,8 @@ pub struct CubeMap {
     depth: Vec<f64>,
     /// `D` per pixel of solids on floors (with those of `depth`).
     depth_floor: Vec<f64>,
-    /// `F` per pixel: the highest floor of the solids behind
-    /// `depth_floor`.
+    /// `F` per pixel: the floor of the solid `depth_floor` came from
+    /// (minus infinity for one not on a floor).
     floor: Vec<f64>,
     scratch: Scratch,
 }
