@@ -190,17 +190,8 @@ struct PlaneJson {
 
 #[derive(Serialize)]
 struct OracleJson<'a> {
-    method: &'static str,
-    scene: String,
-    /// World coordinates, as given.
-    cell: [[f64; 3]; 2],
-    objects: usize,
-    occluders: usize,
-    potentially_visible: Vec<&'a str>,
-    hidden: usize,
-    touching_cell: usize,
-    resolution: usize,
-    backend: String,
+    #[serde(flatten)]
+    common: CellJson<'a>,
     planes: Vec<PlaneJson>,
     sweep_planes: usize,
     sweep_hidden: usize,
@@ -212,9 +203,81 @@ struct OracleJson<'a> {
     inside_solids: usize,
     /// The part of the cell the projections ran from (world coordinates).
     projected_from: [[f64; 3]; 2],
+    seconds: Seconds,
+}
+
+/// What both methods answer, in the same fields.
+#[derive(Serialize)]
+struct CellJson<'a> {
+    method: &'static str,
+    scene: String,
+    /// World coordinates, as given.
+    cell: [[f64; 3]; 2],
+    objects: usize,
+    /// Convex occluders (extended), or solids that can be shrunk.
+    occluders: usize,
+    potentially_visible: Vec<&'a str>,
+    hidden: usize,
+    touching_cell: usize,
+    resolution: usize,
+    backend: String,
     /// With --slices: the kept objects with slices proved hidden.
     slices: Vec<SliceJson<'a>>,
-    seconds: Seconds,
+}
+
+impl<'a> CellJson<'a> {
+    /// The common answer for `visible`, from either method.
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        method: &'static str,
+        args: &OracleArgs,
+        scene: &'a vis5d::scene::Scene,
+        visible: &vis5d::bitset::ObjectSet,
+        touching: usize,
+        occluders: usize,
+        resolution: usize,
+        backend: String,
+        slices: &[Option<(vis5d::slices::SliceIndex, usize)>],
+    ) -> Self {
+        let names: Vec<&str> = visible
+            .iter()
+            .map(|i| scene.objects()[i].name.as_str())
+            .collect();
+        Self {
+            method,
+            scene: args.file.display().to_string(),
+            cell: [args.cell.min.to_array(), args.cell.max.to_array()],
+            objects: scene.objects().len(),
+            occluders,
+            hidden: scene.objects().len() - names.len(),
+            potentially_visible: names,
+            touching_cell: touching,
+            resolution,
+            backend,
+            slices: slice_rows(scene, slices),
+        }
+    }
+
+    /// The slices found and the line that sums the answer up.
+    fn write_verdict(&self, out: &mut impl Write) -> io::Result<()> {
+        write_slices(out, &self.slices)?;
+        writeln!(
+            out,
+            "potentially visible: {} of {} objects ({:.1}% proved hidden; {} touch the cell)",
+            self.potentially_visible.len(),
+            self.objects,
+            100.0 * self.hidden as f64 / self.objects.max(1) as f64,
+            self.touching_cell
+        )
+    }
+
+    /// The names of the objects kept, one a line.
+    fn write_names(&self, out: &mut impl Write) -> io::Result<()> {
+        for n in &self.potentially_visible {
+            writeln!(out, "{}", printable(n))?;
+        }
+        Ok(())
+    }
 }
 
 /// A kept object's hidden slices.
@@ -313,23 +376,19 @@ pub fn run(args: &OracleArgs) -> Result<()> {
         None => oracle.cell(&args.cell.to_local(&frame), None),
     };
     GpuWarning::default().finish(oracle.rasteriser());
-    let names: Vec<&str> = report
-        .visible
-        .iter()
-        .map(|i| scene.objects()[i].name.as_str())
-        .collect();
     let t = report.times;
     let json = OracleJson {
-        method: "extended",
-        scene: args.file.display().to_string(),
-        cell: [args.cell.min.to_array(), args.cell.max.to_array()],
-        objects: scene.objects().len(),
-        occluders: oracle.occluder_count(),
-        hidden: scene.objects().len() - names.len(),
-        potentially_visible: names,
-        touching_cell: report.touching,
-        resolution: oracle.params().resolution,
-        backend: oracle.rasteriser().name(),
+        common: CellJson::new(
+            "extended",
+            args,
+            &scene,
+            &report.visible,
+            report.touching,
+            oracle.occluder_count(),
+            oracle.params().resolution,
+            oracle.rasteriser().name(),
+            &report.slices,
+        ),
         planes: report
             .planes
             .iter()
@@ -358,7 +417,6 @@ pub fn run(args: &OracleArgs) -> Result<()> {
             frame.to_world(report.projected_from.min).to_array(),
             frame.to_world(report.projected_from.max).to_array(),
         ],
-        slices: slice_rows(&scene, &report.slices),
         seconds: Seconds {
             load,
             prepare,
@@ -378,16 +436,20 @@ pub fn run(args: &OracleArgs) -> Result<()> {
     writeln!(
         out,
         "{}: {} objects, {} occluders ({} convex solids, {} polygons, {} triangles), {} objects to slice",
-        json.scene,
-        json.objects,
-        json.occluders,
+        json.common.scene,
+        json.common.objects,
+        json.common.occluders,
         c.solids,
         c.polygons,
         c.triangles,
         oracle.solid_count()
     )?;
-    writeln!(out, "cell {:?} .. {:?}", json.cell[0], json.cell[1])?;
-    let pixels = (json.resolution * json.resolution) as f64;
+    writeln!(
+        out,
+        "cell {:?} .. {:?}",
+        json.common.cell[0], json.common.cell[1]
+    )?;
+    let pixels = (json.common.resolution * json.common.resolution) as f64;
     for p in &json.planes {
         writeln!(
             out,
@@ -397,8 +459,8 @@ pub fn run(args: &OracleArgs) -> Result<()> {
             p.occluders,
             p.slices,
             100.0 * p.filled_pixels as f64 / pixels,
-            json.resolution,
-            json.resolution,
+            json.common.resolution,
+            json.common.resolution,
             p.hidden
         )?;
     }
@@ -431,41 +493,21 @@ pub fn run(args: &OracleArgs) -> Result<()> {
             json.shaft_hidden
         )?;
     }
-    write_slices(&mut out, &json.slices)?;
-    writeln!(
-        out,
-        "potentially visible: {} of {} objects ({:.1}% proved hidden; {} touch the cell)",
-        json.potentially_visible.len(),
-        json.objects,
-        100.0 * json.hidden as f64 / json.objects.max(1) as f64,
-        json.touching_cell
-    )?;
+    json.common.write_verdict(&mut out)?;
     let s = &json.seconds;
     writeln!(
         out,
         "time: load {:.3} s, prepare {:.3} s, cell {:.3} s (select {:.3}, rasterise {:.3}, test {:.3}); depth maps on the {}",
-        s.load, s.prepare, s.cell, s.select, s.rasterise, s.test, json.backend
+        s.load, s.prepare, s.cell, s.select, s.rasterise, s.test, json.common.backend
     )?;
-    for n in &json.potentially_visible {
-        writeln!(out, "{}", printable(n))?;
-    }
+    json.common.write_names(&mut out)?;
     Ok(())
 }
 
 #[derive(Serialize)]
 struct ShrinkJson<'a> {
-    method: &'static str,
-    scene: String,
-    /// World coordinates, as given.
-    cell: [[f64; 3]; 2],
-    objects: usize,
-    /// Solids that can be shrunk.
-    occluders: usize,
-    potentially_visible: Vec<&'a str>,
-    hidden: usize,
-    touching_cell: usize,
-    resolution: usize,
-    backend: &'static str,
+    #[serde(flatten)]
+    common: CellJson<'a>,
     /// The distance the solids were shrunk by.
     erosion: f64,
     solids_drawn: usize,
@@ -474,8 +516,6 @@ struct ShrinkJson<'a> {
     faces: FacesJson,
     covered_pixels: usize,
     cluster_hidden: usize,
-    /// With --slices: the kept objects with slices proved hidden.
-    slices: Vec<SliceJson<'a>>,
     seconds: ShrinkSeconds,
 }
 
@@ -519,24 +559,20 @@ fn run_shrink(args: &OracleArgs) -> Result<()> {
         Some(s) => oracle.cell_slices(&args.cell.to_local(&frame), s),
         None => oracle.cell(&args.cell.to_local(&frame)),
     };
-    let names: Vec<&str> = report
-        .visible
-        .iter()
-        .map(|i| scene.objects()[i].name.as_str())
-        .collect();
     let t = report.times;
     let c = report.counts;
     let json = ShrinkJson {
-        method: "shrink",
-        scene: args.file.display().to_string(),
-        cell: [args.cell.min.to_array(), args.cell.max.to_array()],
-        objects: scene.objects().len(),
-        occluders: oracle.solid_count(),
-        hidden: scene.objects().len() - names.len(),
-        potentially_visible: names,
-        touching_cell: report.touching,
-        resolution: oracle.params().resolution,
-        backend: "cpu",
+        common: CellJson::new(
+            "shrink",
+            args,
+            &scene,
+            &report.visible,
+            report.touching,
+            oracle.solid_count(),
+            oracle.params().resolution,
+            "cpu".to_string(),
+            &report.slices,
+        ),
         erosion: report.erosion,
         solids_drawn: report.solids_drawn,
         faces_drawn: report.faces_drawn,
@@ -549,7 +585,6 @@ fn run_shrink(args: &OracleArgs) -> Result<()> {
         },
         covered_pixels: report.covered,
         cluster_hidden: report.cluster_hidden,
-        slices: slice_rows(&scene, &report.slices),
         seconds: ShrinkSeconds {
             load,
             prepare,
@@ -568,24 +603,28 @@ fn run_shrink(args: &OracleArgs) -> Result<()> {
     writeln!(
         out,
         "{}: {} objects, {} closed solids (or open only at the bottom) to shrink",
-        json.scene, json.objects, json.occluders
+        json.common.scene, json.common.objects, json.common.occluders
     )?;
-    writeln!(out, "cell {:?} .. {:?}", json.cell[0], json.cell[1])?;
+    writeln!(
+        out,
+        "cell {:?} .. {:?}",
+        json.common.cell[0], json.common.cell[1]
+    )?;
     let f = &json.faces;
     writeln!(
         out,
         "  shrunk by {:.4}: of {} faces, {} degenerate, {} swept into others (the paper's test), {} not deep enough inside (ours), {} kept",
         json.erosion, f.input, f.degenerate, f.swept, f.unsafe_, f.kept
     )?;
-    let pixels = 6 * json.resolution * json.resolution;
+    let pixels = 6 * json.common.resolution * json.common.resolution;
     writeln!(
         out,
         "  from the centre: {} shrunk solids ({} faces) drawn, {:.1}% of 6 x {}x{} pixels covered",
         json.solids_drawn,
         json.faces_drawn,
         100.0 * json.covered_pixels as f64 / pixels as f64,
-        json.resolution,
-        json.resolution
+        json.common.resolution,
+        json.common.resolution
     )?;
     if json.cluster_hidden > 0 {
         writeln!(
@@ -594,23 +633,13 @@ fn run_shrink(args: &OracleArgs) -> Result<()> {
             json.cluster_hidden
         )?;
     }
-    write_slices(&mut out, &json.slices)?;
-    writeln!(
-        out,
-        "potentially visible: {} of {} objects ({:.1}% proved hidden; {} touch the cell)",
-        json.potentially_visible.len(),
-        json.objects,
-        100.0 * json.hidden as f64 / json.objects.max(1) as f64,
-        json.touching_cell
-    )?;
+    json.common.write_verdict(&mut out)?;
     let s = &json.seconds;
     writeln!(
         out,
         "time: load {:.3} s, prepare {:.3} s, cell {:.3} s (shrink {:.3}, rasterise {:.3}, test {:.3}); cube map on the CPU",
         s.load, s.prepare, s.cell, s.shrink, s.rasterise, s.test
     )?;
-    for n in &json.potentially_visible {
-        writeln!(out, "{}", printable(n))?;
-    }
+    json.common.write_names(&mut out)?;
     Ok(())
 }
