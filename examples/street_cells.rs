@@ -346,16 +346,7 @@ fn main() -> ExitCode {
                 Some(sl) => shrink.cell_slices(&cell, sl),
                 None => shrink.cell(&cell),
             };
-            if slices.is_empty() {
-                slices = s.slices;
-            } else {
-                // Both: per object, the index that culls more.
-                for (a, b) in slices.iter_mut().zip(s.slices) {
-                    if b.is_some_and(|(_, n)| a.is_none_or(|(_, m)| n > m)) {
-                        *a = b;
-                    }
-                }
-            }
+            vis5d::slices::keep_the_larger(&mut slices, s.slices);
             if args.method == "shrink" {
                 report.visible = s.visible;
             } else {

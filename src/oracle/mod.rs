@@ -76,12 +76,23 @@ mod oracle_slice;
 mod oracle_sweep;
 
 pub use oracle_check::{CheckParams, CheckReport, LeafCheck, Suspect, Violation, check_tree};
-pub(crate) use oracle_clusters::{Cluster, build as build_clusters};
+pub(crate) use oracle_clusters::{Cluster, build as build_clusters, hidden_below};
 #[cfg(feature = "gpu")]
 pub use oracle_gpu::{GpuError, GpuRasteriser};
 pub use oracle_occluders::OccluderCounts;
 pub use oracle_plane::{MapJob, ProjectedOccluder, cpu_rasterise};
+pub(crate) use oracle_project::corners;
 pub use oracle_raster::Rasteriser;
+
+/// A margin for the tracer's rounding around the cell `[cmin, cmax]` of
+/// `scene`: 8 f32 ulps of the extent and the largest coordinate of the
+/// scene and the cell together (both oracles use it).
+pub(crate) fn tracer_slack(scene: &Scene, cmin: DVec3, cmax: DVec3) -> f64 {
+    let b = scene.bounds();
+    let (lo, hi) = (b.min.as_dvec3().min(cmin), b.max.as_dvec3().max(cmax));
+    let scale = (hi - lo).length() + lo.abs().max(hi.abs()).max_element();
+    8.0 * f32::EPSILON as f64 * scale
+}
 
 /// The objects that can be sliced (closed, or open only at the bottom),
 /// for the shrinking oracle ([`crate::shrink`]).
@@ -103,8 +114,8 @@ use oracle_occluders::{Occluder, SlicedSolid};
 use oracle_patches::Patch;
 use oracle_plane::DepthMap;
 use oracle_project::{
-    Frame, clip_above, clip_below, corners, improved_rect, occludee_polygon, occludee_rect,
-    occluder_views, ordered_views, project,
+    Frame, clip_above, clip_below, improved_rect, occludee_polygon, occludee_rect, occluder_views,
+    ordered_views, project,
 };
 use oracle_sweep::{Sweep, SweepPlane};
 
@@ -1256,10 +1267,7 @@ impl<'a> Oracle<'a> {
     }
 
     fn slack(&self, cmin: DVec3, cmax: DVec3) -> f64 {
-        let b = self.scene.bounds();
-        let (lo, hi) = (b.min.as_dvec3().min(cmin), b.max.as_dvec3().max(cmax));
-        let scale = (hi - lo).length() + lo.abs().max(hi.abs()).max_element();
-        8.0 * f32::EPSILON as f64 * scale
+        tracer_slack(self.scene, cmin, cmax)
     }
 
     /// The plane rectangle at `wp`.

@@ -484,16 +484,7 @@ pub fn run(
             );
             if let Some((mut both, s0, mut slices)) = extended {
                 both.intersect_with(&kept);
-                // Per object, the slices that cull more.
-                if slices.is_empty() {
-                    slices = r.slices;
-                } else {
-                    for (a, b) in slices.iter_mut().zip(r.slices) {
-                        if b.is_some_and(|(_, n)| a.is_none_or(|(_, m)| n > m)) {
-                            *a = b;
-                        }
-                    }
-                }
+                crate::slices::keep_the_larger(&mut slices, r.slices);
                 run_of(&mut runs, Method::Both).record_slices(
                     scene,
                     &t,

@@ -69,7 +69,7 @@ use glam::DVec3;
 
 use crate::bitset::ObjectSet;
 use crate::geom::Aabb;
-use crate::oracle::{Cluster, build_clusters, sliced_solids};
+use crate::oracle::{Cluster, build_clusters, hidden_below, sliced_solids, tracer_slack};
 use crate::scene::Scene;
 use crate::slices::{SliceIndex, SlicedScene};
 use shrink_cube::CubeMap;
@@ -256,15 +256,6 @@ impl<'a> ShrinkOracle<'a> {
         self.solids.len() - self.twins.iter().filter(|t| t.is_some()).count()
     }
 
-    /// A margin for the tracer's rounding: as the extended-projection
-    /// oracle's, relative to the scene's extent and coordinates.
-    fn slack(&self, cmin: DVec3, cmax: DVec3) -> f64 {
-        let b = self.scene.bounds();
-        let (lo, hi) = (b.min.as_dvec3().min(cmin), b.max.as_dvec3().max(cmax));
-        let scale = (hi - lo).length() + lo.abs().max(hi.abs()).max_element();
-        8.0 * f32::EPSILON as f64 * scale
-    }
-
     /// The solids shrunk by the step at or above `e`, with `margin` (the
     /// cache is keyed by both).
     fn shrunk(&self, e: f64, margin: f64) -> (Arc<ShrunkSet>, f64, Duration) {
@@ -332,7 +323,7 @@ impl<'a> ShrinkOracle<'a> {
         if !(cmin.is_finite() && cmax.is_finite() && cmin.cmple(cmax).all()) {
             return report;
         }
-        let slack = self.slack(cmin, cmax);
+        let slack = tracer_slack(self.scene, cmin, cmax);
         let eye = (cmin + cmax) / 2.0;
         // Every point of the cell within e of the eye (with its rounding),
         // and no shrinking by less than a scene's hair.
@@ -415,23 +406,14 @@ impl<'a> ShrinkOracle<'a> {
     }
 }
 
-/// Whether every leaf cluster (or a cluster above it) is hidden; stops at
-/// the first leaf that is not.
+/// Whether every leaf cluster (or a cluster above it) is hidden, below
+/// the root (the object's box, tried already).
 fn clusters_hidden(clusters: &[Cluster], hidden: &dyn Fn(DVec3, DVec3) -> bool) -> bool {
-    // The root is the object's box, tried already.
-    let mut stack = match clusters[0].children {
-        Some(children) => children.to_vec(),
-        None => return false,
-    };
-    while let Some(k) = stack.pop() {
-        let c = &clusters[k as usize];
-        if hidden(c.min, c.max) {
-            continue;
+    let mut test = |a: DVec3, b: DVec3| hidden(a, b);
+    match clusters[0].children {
+        Some([a, b]) => {
+            hidden_below(clusters, a, &mut test) && hidden_below(clusters, b, &mut test)
         }
-        match c.children {
-            Some(children) => stack.extend_from_slice(&children),
-            None => return false,
-        }
+        None => false,
     }
-    true
 }

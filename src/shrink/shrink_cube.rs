@@ -40,6 +40,17 @@ use super::shrink_mesh::Shrunk;
 /// Margin, in pixels, by which touching is widened.
 const MARGIN: f64 = 1e-7;
 
+/// The six faces of a box as quads of its corners (numbered as by
+/// `oracle::corners`), wound outward: -z first, then +z, -y, +y, -x, +x.
+pub(super) const BOX_QUADS: [[usize; 4]; 6] = [
+    [0, 2, 3, 1],
+    [4, 5, 7, 6],
+    [0, 1, 5, 4],
+    [2, 6, 7, 3],
+    [0, 4, 6, 2],
+    [1, 3, 7, 5],
+];
+
 /// The six faces: the axis and its sign.
 const FACES: [(usize, f64); 6] = [
     (0, 1.0),
@@ -207,24 +218,10 @@ impl CubeMap {
         if (0..3).all(|k| a[k] <= 0.0 && b[k] >= 0.0) {
             return false;
         }
-        let c = |i: usize| {
-            DVec3::new(
-                if i & 1 == 0 { a.x } else { b.x },
-                if i & 2 == 0 { a.y } else { b.y },
-                if i & 4 == 0 { a.z } else { b.z },
-            )
-        };
-        const QUADS: [[usize; 4]; 6] = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
+        let c = crate::oracle::corners(a, b);
         let n = self.n;
-        for q in QUADS {
-            let quad = q.map(c);
+        for q in BOX_QUADS {
+            let quad = q.map(|i| c[i]);
             for face in 0..6 {
                 let Ok(poly) = project(&quad, face, n) else {
                     return false;

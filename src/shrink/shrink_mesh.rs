@@ -564,25 +564,11 @@ pub(crate) mod tests {
 
     /// The 12 triangles of the box `[a, b]`, outward.
     pub(crate) fn box_triangles(a: DVec3, b: DVec3) -> Vec<[DVec3; 3]> {
-        let c = |i: usize| {
-            DVec3::new(
-                if i & 1 == 0 { a.x } else { b.x },
-                if i & 2 == 0 { a.y } else { b.y },
-                if i & 4 == 0 { a.z } else { b.z },
-            )
-        };
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
+        let c = crate::oracle::corners(a, b);
         let mut out = Vec::new();
-        for q in quads {
-            out.push([c(q[0]), c(q[1]), c(q[2])]);
-            out.push([c(q[0]), c(q[2]), c(q[3])]);
+        for q in crate::shrink::shrink_cube::BOX_QUADS {
+            out.push([c[q[0]], c[q[1]], c[q[2]]]);
+            out.push([c[q[0]], c[q[2]], c[q[3]]]);
         }
         out
     }

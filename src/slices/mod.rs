@@ -73,6 +73,24 @@ impl SliceIndex {
     pub const NONE: SliceIndex = SliceIndex { x: 0, y: 0, z: 0 };
 }
 
+/// Per object, of two oracles' answers (`Oracle::cell_slices`,
+/// `ShrinkOracle::cell_slices`), the hidden slices that cull more: both
+/// are proved, so either will do. `into` empty takes `other` whole.
+pub fn keep_the_larger(
+    into: &mut Vec<Option<(SliceIndex, usize)>>,
+    other: Vec<Option<(SliceIndex, usize)>>,
+) {
+    if into.is_empty() {
+        *into = other;
+        return;
+    }
+    for (a, b) in into.iter_mut().zip(other) {
+        if b.is_some_and(|(_, n)| a.is_none_or(|(_, m)| n > m)) {
+            *a = b;
+        }
+    }
+}
+
 /// One object's slices.
 #[derive(Clone, Debug)]
 pub struct ObjectSlices {
