@@ -400,11 +400,11 @@ fn main() -> ExitCode {
         for h in tracer.closest_hits(&rays).into_iter().flatten() {
             seen.insert(h.object as usize);
             let o = h.object as usize;
-            if let (Some(sl), Some(Some((index, _)))) = (&sliced, slices.get(o)) {
+            if let (Some(sl), Some(Some(hidden))) = (&sliced, slices.get(o)) {
                 let t = (h.triangle - scene.objects()[o].triangles.start) as usize;
-                if sl.object(o).culled(t, *index) {
+                if sl.culled(o, t, hidden) {
                     eprintln!(
-                        "error: a ray hits a triangle of {} that its slices {index:?} cull, from the cell {cell:?}",
+                        "error: a ray hits a triangle of {} that its slices {hidden:?} cull, from the cell {cell:?}",
                         scene.objects()[o].name
                     );
                     return ExitCode::FAILURE;
@@ -416,8 +416,8 @@ fn main() -> ExitCode {
         let slice_culled: usize = report
             .visible
             .iter()
-            .filter_map(|o| slices.get(o).copied().flatten())
-            .map(|(_, c)| c)
+            .filter_map(|o| slices.get(o).and_then(Option::as_ref))
+            .map(|h| h.culled())
             .sum();
         if !seen.is_subset(&report.visible) {
             eprintln!("error: the oracle hid an object a ray hits, from the cell {cell:?}");

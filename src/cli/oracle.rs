@@ -237,7 +237,7 @@ impl<'a> CellJson<'a> {
         occluders: usize,
         resolution: usize,
         backend: String,
-        slices: &[Option<(vis5d::slices::SliceIndex, usize)>],
+        slices: &[Option<vis5d::slices::HiddenSlices>],
     ) -> Self {
         let names: Vec<&str> = visible
             .iter()
@@ -284,8 +284,9 @@ impl<'a> CellJson<'a> {
 #[derive(Serialize)]
 struct SliceJson<'a> {
     object: &'a str,
-    /// The index: [x, y, z] (see --slices).
-    index: [i16; 3],
+    /// Per piece of the object (one for an object of up to 1,024
+    /// triangles), the index: [x, y, z] (see --slices).
+    indices: Vec<[i16; 3]>,
     triangles: usize,
     culled: usize,
 }
@@ -293,17 +294,21 @@ struct SliceJson<'a> {
 /// The kept objects' hidden slices, as JSON rows.
 fn slice_rows<'a>(
     scene: &'a vis5d::scene::Scene,
-    slices: &[Option<(vis5d::slices::SliceIndex, usize)>],
+    slices: &[Option<vis5d::slices::HiddenSlices>],
 ) -> Vec<SliceJson<'a>> {
     slices
         .iter()
         .enumerate()
         .filter_map(|(o, s)| {
-            s.map(|(i, culled)| SliceJson {
+            s.as_ref().map(|h| SliceJson {
                 object: scene.objects()[o].name.as_str(),
-                index: [i.x, i.y, i16::from(i.z)],
+                indices: h
+                    .pieces
+                    .iter()
+                    .map(|(i, _)| [i.x, i.y, i16::from(i.z)])
+                    .collect(),
                 triangles: scene.objects()[o].triangle_count(),
-                culled,
+                culled: h.culled(),
             })
         })
         .collect()
@@ -321,13 +326,17 @@ fn write_slices(out: &mut impl Write, rows: &[SliceJson]) -> io::Result<()> {
         rows.len()
     )?;
     for r in rows {
+        let indices = if r.indices.len() == 1 {
+            let i = r.indices[0];
+            format!("[{}, {}, {}]", i[0], i[1], i[2])
+        } else {
+            let partly = r.indices.iter().filter(|i| **i != [0, 0, 0]).count();
+            format!("{partly} of {} pieces", r.indices.len())
+        };
         writeln!(
             out,
-            "    {} [{}, {}, {}]: {} of {} triangles culled",
+            "    {} {indices}: {} of {} triangles culled",
             printable(r.object),
-            r.index[0],
-            r.index[1],
-            r.index[2],
             r.culled,
             r.triangles
         )?;

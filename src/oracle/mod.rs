@@ -109,7 +109,7 @@ use crate::bitset::ObjectSet;
 use crate::geom::polygon::{convex_hull, signed_area};
 use crate::geom::{Aabb, BoxTree};
 use crate::scene::Scene;
-use crate::slices::{SliceIndex, SlicedScene};
+use crate::slices::{HiddenSlices, SlicedScene};
 use oracle_occluders::{Occluder, SlicedSolid};
 use oracle_patches::Patch;
 use oracle_plane::DepthMap;
@@ -314,7 +314,7 @@ pub struct CellReport {
     pub times: CellTimes,
     /// With [`Oracle::cell_slices`], per object: the slices of a kept
     /// object proved hidden and the triangles they cull (empty otherwise).
-    pub slices: Vec<Option<(SliceIndex, usize)>>,
+    pub slices: Vec<Option<HiddenSlices>>,
 }
 
 /// The oracle over one scene: its occluders and the hierarchy of its
@@ -428,10 +428,11 @@ impl<'a> Oracle<'a> {
         self.run(cell, parent_hidden, rasterise, None)
     }
 
-    /// [`Oracle::cell`], and for each object it keeps that does not touch
-    /// the cell, the slices proved hidden (papers/004 sec. 3) on the same
-    /// maps and sweeps: the [`SliceIndex`] that culls the most of its
-    /// triangles and how many, or `None` (in [`CellReport::slices`]).
+    /// [`Oracle::cell`], and for each object it keeps, the slices proved
+    /// hidden (papers/004 sec. 3) on the same maps and sweeps (never a
+    /// slice box that touches the cell): per piece, the [`crate::slices::SliceIndex`] that
+    /// culls the most of its triangles and how many, or `None` when no
+    /// piece has any (in [`CellReport::slices`]).
     pub fn cell_slices(
         &self,
         cell: &Aabb,
@@ -746,27 +747,37 @@ impl<'a> Oracle<'a> {
         hidden.subtract(&keep);
         let mut visible = ObjectSet::full(objects);
         visible.subtract(&hidden);
-        // Slices of the objects kept, on the same maps and sweeps (not of
-        // those that touch the cell or meet a solid it reaches into).
+        // Slices of the objects kept, on the same maps and sweeps: never a
+        // slice box that touches the cell or meets a solid it reaches into
+        // (whose objects are kept), but the pieces of an object that does
+        // (a terrain under the cell) can be hidden.
         let mut slices = Vec::new();
         if let Some(sliced) = sliced {
             let both =
                 |x: DVec3, y: DVec3| on_maps(x, y) || (!sweeps.is_empty() && on_sweeps(x, y));
+            let reached_boxes: Vec<(DVec3, DVec3)> = reached
+                .iter()
+                .map(|&i| (self.occluders[i].min - pad, self.occluders[i].max + pad))
+                .collect();
             slices = (0..objects)
                 .into_par_iter()
                 .map(|i| {
-                    if !visible.contains(i) || verdicts[i] == 1 || keep.contains(i) {
+                    if !visible.contains(i) {
                         return None;
                     }
                     let o = &self.scene.objects()[i].bounds;
                     let (lo, hi) = (o.min.as_dvec3(), o.max.as_dvec3());
-                    let pad = slack + 1e-9 * (hi - lo).max_element();
+                    let slice_pad = slack + 1e-9 * (hi - lo).max_element();
                     let mut hidden = |a: DVec3, b: DVec3| {
-                        let (a, b) = (a - pad, b + pad);
-                        !(a.cmple(cmax).all() && b.cmpge(cmin).all())
+                        let (a, b) = (a - slice_pad, b + slice_pad);
+                        let meets = |(smin, smax): &(DVec3, DVec3)| {
+                            a.cmple(*smax).all() && b.cmpge(*smin).all()
+                        };
+                        !meets(&(cmin, cmax))
+                            && !reached_boxes.iter().any(meets)
                             && pieces_hidden(&both, cmin, cmax, a, b)
                     };
-                    sliced.object(i).best_index(&mut hidden)
+                    sliced.hidden_slices(i, &mut hidden)
                 })
                 .collect();
         }

@@ -12,7 +12,7 @@ use crate::query::{Pvs, View};
 use crate::render::Camera;
 use crate::scene::Scene;
 use crate::shrink::ShrinkOracle;
-use crate::slices::{SliceIndex, SlicedScene};
+use crate::slices::{HiddenSlices, SlicedScene};
 use crate::trace::Tracer;
 
 /// A visibility method a report compares.
@@ -238,15 +238,15 @@ impl MethodRun {
         truth: &ViewTruth,
         drawn: &ObjectSet,
         seconds: f64,
-        slices: &[Option<(SliceIndex, usize)>],
+        slices: &[Option<HiddenSlices>],
         with_slices: bool,
     ) {
         self.record(scene, truth, drawn, seconds);
         if with_slices {
             let culled: u64 = drawn
                 .iter()
-                .filter_map(|o| slices.get(o).copied().flatten())
-                .map(|(_, n)| n as u64)
+                .filter_map(|o| slices.get(o).and_then(Option::as_ref))
+                .map(|h| h.culled() as u64)
                 .sum();
             let last = self.per_view.last_mut().expect("just recorded");
             last.slice_triangles = Some(last.triangles - culled);

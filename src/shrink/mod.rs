@@ -71,7 +71,7 @@ use crate::bitset::ObjectSet;
 use crate::geom::Aabb;
 use crate::oracle::{Cluster, build_clusters, hidden_below, sliced_solids, tracer_slack};
 use crate::scene::Scene;
-use crate::slices::{SliceIndex, SlicedScene};
+use crate::slices::{HiddenSlices, SlicedScene};
 use shrink_cube::CubeMap;
 use shrink_mesh::{Shrunk, Solid};
 
@@ -193,7 +193,7 @@ pub struct ShrinkReport {
     /// With [`ShrinkOracle::cell_slices`], per object: the slices of a
     /// kept object proved hidden and the triangles they cull (empty
     /// otherwise).
-    pub slices: Vec<Option<(SliceIndex, usize)>>,
+    pub slices: Vec<Option<HiddenSlices>>,
 }
 
 /// The scene's solids shrunk by one distance (in the order of
@@ -297,10 +297,12 @@ impl<'a> ShrinkOracle<'a> {
         self.run(cell, None)
     }
 
-    /// [`ShrinkOracle::cell`], and for each object it keeps that does not
-    /// touch the cell, the slices proved hidden (papers/004 sec. 3): the
-    /// [`SliceIndex`] that culls the most of its triangles and how many,
-    /// or `None`. The answer's `slices` holds them, one per object.
+    /// [`ShrinkOracle::cell`], and for each object it keeps, the slices
+    /// proved hidden (papers/004 sec. 3; never a slice box that touches
+    /// the cell): the
+    /// per piece, the [`crate::slices::SliceIndex`] that culls the most of
+    /// its triangles and how many, or `None` when no piece has any. The
+    /// answer's `slices` holds them, one per object.
     pub fn cell_slices(&self, cell: &Aabb, sliced: &SlicedScene) -> ShrinkReport {
         self.run(cell, Some(sliced))
     }
@@ -386,17 +388,20 @@ impl<'a> ShrinkOracle<'a> {
             for i in visible.iter() {
                 let o = &self.scene.objects()[i];
                 let (lo, hi) = (o.bounds.min.as_dvec3(), o.bounds.max.as_dvec3());
-                if (0..3).all(|k| lo[k] <= gmax[k] && hi[k] >= gmin[k]) {
-                    continue;
-                }
-                // Slice boxes grown past the rounding of their sides.
+                // Slice boxes grown past the rounding of their sides; a box
+                // that touches the cell is not hidden (Theorem 1 is for
+                // occludees outside it), but the pieces of an object that
+                // does (a terrain under the cell) can be.
                 let pad = slack + 1e-9 * (hi - lo).max_element();
                 let mut hidden = |a: DVec3, b: DVec3| {
                     let (a, b) = (a - pad, b + pad);
+                    if (0..3).all(|k| a[k] <= gmax[k] && b[k] >= gmin[k]) {
+                        return false;
+                    }
                     let near = shrink_geom::point_box_distance(eye, a, b) - slack;
                     map.box_hidden(a, b, near)
                 };
-                report.slices[i] = sliced.object(i).best_index(&mut hidden);
+                report.slices[i] = sliced.hidden_slices(i, &mut hidden);
             }
         }
         report.times.test = start.elapsed();

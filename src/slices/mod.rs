@@ -73,84 +73,263 @@ impl SliceIndex {
     pub const NONE: SliceIndex = SliceIndex { x: 0, y: 0, z: 0 };
 }
 
+/// The hidden slices of one kept object from one cell: per piece of the
+/// object (see [`SlicedScene`]), in piece order, the index and the
+/// triangles it culls ([`SliceIndex::NONE`] and 0 for a piece with
+/// nothing hidden).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct HiddenSlices {
+    /// Per piece, the index and the triangles it culls.
+    pub pieces: Vec<(SliceIndex, usize)>,
+}
+
+impl HiddenSlices {
+    /// The triangles culled, over every piece.
+    pub fn culled(&self) -> usize {
+        self.pieces.iter().map(|&(_, n)| n).sum()
+    }
+}
+
 /// Per object, of two oracles' answers (`Oracle::cell_slices`,
-/// `ShrinkOracle::cell_slices`), the hidden slices that cull more: both
-/// are proved, so either will do. `into` empty takes `other` whole.
-pub fn keep_the_larger(
-    into: &mut Vec<Option<(SliceIndex, usize)>>,
-    other: Vec<Option<(SliceIndex, usize)>>,
-) {
+/// `ShrinkOracle::cell_slices`), piece by piece the hidden slices that
+/// cull more: both are proved, so either will do. `into` empty takes
+/// `other` whole.
+pub fn keep_the_larger(into: &mut Vec<Option<HiddenSlices>>, other: Vec<Option<HiddenSlices>>) {
     if into.is_empty() {
         *into = other;
         return;
     }
     for (a, b) in into.iter_mut().zip(other) {
-        if b.is_some_and(|(_, n)| a.is_none_or(|(_, m)| n > m)) {
-            *a = b;
+        match (a.as_mut(), b) {
+            (_, None) => {}
+            (None, b) => *a = b,
+            (Some(a), Some(b)) => {
+                for (x, y) in a.pieces.iter_mut().zip(b.pieces) {
+                    if y.1 > x.1 {
+                        *x = y;
+                    }
+                }
+            }
         }
     }
 }
 
-/// One object's slices.
+/// One piece of an object, sliced (an object of few triangles is one
+/// piece).
 #[derive(Clone, Debug)]
 pub struct ObjectSlices {
-    /// The object's box.
+    /// The piece's box.
     pub min: DVec3,
-    /// The object's box.
+    /// The piece's box.
     pub max: DVec3,
     /// Slices along x, y and z.
     pub counts: [usize; 3],
-    /// Per triangle (in the object's order), the lowest slice it overlaps
+    /// The piece's triangles (indices into the object's), in increasing
+    /// order; the piece's own triangle `t` is `triangles[t]`.
+    pub triangles: Vec<u32>,
+    /// Per triangle (in the piece's order), the lowest slice it overlaps
     /// along each axis.
     lo: Vec<[u8; 3]>,
     /// Per triangle, the highest.
     hi: Vec<[u8; 3]>,
 }
 
-/// Every object of a scene, sliced.
+/// Every object of a scene, cut into pieces and sliced.
+///
+/// **Pieces** (papers/004 sec. 6: "a subdivision at the object level
+/// could be done to create smaller objects"). An object of more than
+/// [`PIECE_TRIANGLES`] triangles (a terrain, a detailed building) is cut
+/// on a grid across x and y into about one piece per [`PIECE_TRIANGLES`]
+/// triangles, as square as its footprint allows and at most
+/// [`MAX_PIECES_PER_AXIS`] along an axis; each triangle goes to the piece
+/// its centroid lies in, and each piece (the box of its triangles) is
+/// sliced and gets its own index. One index an object cannot say that
+/// the parts of a terrain behind the blocks on both sides of a street are
+/// hidden; one a piece can.
 #[derive(Clone, Debug)]
 pub struct SlicedScene {
-    objects: Vec<ObjectSlices>,
+    /// Slices an axis.
+    slices: usize,
+    /// Per object, its pieces.
+    objects: Vec<Vec<ObjectSlices>>,
+    /// Per object of more than one piece, per triangle, its piece and its
+    /// index there; empty for one piece.
+    place: Vec<Vec<(u32, u32)>>,
 }
 
+/// Objects of more than this many triangles are cut into pieces.
+pub const PIECE_TRIANGLES: usize = 1024;
+
+/// The most pieces along x or y.
+pub const MAX_PIECES_PER_AXIS: usize = 16;
+
 impl SlicedScene {
-    /// Cuts every object of `scene` into `slices` slices along each axis
-    /// (one along an axis where its box is flat).
+    /// Cuts every object of `scene` into pieces (see the type) and each
+    /// piece into `slices` slices along each axis (one along an axis
+    /// where its box is flat).
     pub fn new(scene: &Scene, slices: usize) -> Result<Self, SliceError> {
         if !(1..=MAX_SLICES).contains(&slices) {
             return Err(SliceError::Count(slices));
         }
-        let objects = (0..scene.objects().len())
-            .map(|o| {
-                let object = &scene.objects()[o];
-                let tris = scene.object_triangles(o);
-                let (min, max) = if tris.is_empty() {
-                    (DVec3::ZERO, DVec3::ZERO)
-                } else {
-                    (object.bounds.min.as_dvec3(), object.bounds.max.as_dvec3())
-                };
-                if !(min.is_finite() && max.is_finite()) {
-                    return Err(SliceError::Object {
-                        object: o,
-                        name: object.name.clone(),
-                    });
-                }
-                let tris: Vec<[DVec3; 3]> = tris.iter().map(|t| t.map(|v| v.as_dvec3())).collect();
-                Ok(ObjectSlices::new(min, max, slices, &tris))
-            })
-            .collect::<Result<_, _>>()?;
-        Ok(Self { objects })
+        let mut objects = Vec::with_capacity(scene.objects().len());
+        let mut place = Vec::with_capacity(scene.objects().len());
+        for o in 0..scene.objects().len() {
+            let object = &scene.objects()[o];
+            let tris = scene.object_triangles(o);
+            let (min, max) = if tris.is_empty() {
+                (DVec3::ZERO, DVec3::ZERO)
+            } else {
+                (object.bounds.min.as_dvec3(), object.bounds.max.as_dvec3())
+            };
+            if !(min.is_finite() && max.is_finite()) {
+                return Err(SliceError::Object {
+                    object: o,
+                    name: object.name.clone(),
+                });
+            }
+            let tris: Vec<[DVec3; 3]> = tris.iter().map(|t| t.map(|v| v.as_dvec3())).collect();
+            let groups = piece_groups(&tris, min, max);
+            if groups.len() == 1 {
+                objects.push(vec![ObjectSlices::new(min, max, slices, &tris)]);
+                place.push(Vec::new());
+                continue;
+            }
+            let mut where_ = vec![(0u32, 0u32); tris.len()];
+            let pieces = groups
+                .iter()
+                .enumerate()
+                .map(|(p, group)| {
+                    let own: Vec<[DVec3; 3]> = group.iter().map(|&t| tris[t as usize]).collect();
+                    let lo = own.iter().flatten().fold(DVec3::INFINITY, |a, &v| a.min(v));
+                    let hi = own
+                        .iter()
+                        .flatten()
+                        .fold(DVec3::NEG_INFINITY, |a, &v| a.max(v));
+                    for (k, &t) in group.iter().enumerate() {
+                        where_[t as usize] = (p as u32, k as u32);
+                    }
+                    let mut piece = ObjectSlices::new(lo, hi, slices, &own);
+                    piece.triangles = group.clone();
+                    piece
+                })
+                .collect();
+            objects.push(pieces);
+            place.push(where_);
+        }
+        Ok(Self {
+            slices,
+            objects,
+            place,
+        })
     }
 
-    /// Object `i`'s slices.
-    pub fn object(&self, i: usize) -> &ObjectSlices {
+    /// Slices an axis.
+    pub fn slices(&self) -> usize {
+        self.slices
+    }
+
+    /// Object `i`'s pieces (one for most objects).
+    pub fn pieces(&self, i: usize) -> &[ObjectSlices] {
         &self.objects[i]
     }
+
+    /// Object `i`'s triangle `t`: its piece and its index there.
+    pub fn place(&self, i: usize, t: usize) -> (usize, usize) {
+        match self.place[i].get(t) {
+            Some(&(p, k)) => (p as usize, k as usize),
+            None => (0, t),
+        }
+    }
+
+    /// The hidden slices of object `i`, piece by piece
+    /// ([`ObjectSlices::best_index`]); `None` when no piece has any.
+    pub fn hidden_slices(
+        &self,
+        i: usize,
+        hidden: &mut dyn FnMut(DVec3, DVec3) -> bool,
+    ) -> Option<HiddenSlices> {
+        let pieces: Vec<(SliceIndex, usize)> = self.objects[i]
+            .iter()
+            .map(|p| p.best_index(hidden).unwrap_or((SliceIndex::NONE, 0)))
+            .collect();
+        pieces
+            .iter()
+            .any(|&(_, n)| n > 0)
+            .then_some(HiddenSlices { pieces })
+    }
+
+    /// Whether object `i`'s triangle `t` (in the object's order) is culled
+    /// by `hidden`.
+    pub fn culled(&self, i: usize, t: usize, hidden: &HiddenSlices) -> bool {
+        let (p, k) = self.place(i, t);
+        hidden
+            .pieces
+            .get(p)
+            .is_some_and(|&(index, _)| self.objects[i][p].culled(k, index))
+    }
+
+    /// The number of object `i`'s triangles `hidden` culls.
+    pub fn culled_count(&self, i: usize, hidden: &HiddenSlices) -> usize {
+        self.objects[i]
+            .iter()
+            .zip(&hidden.pieces)
+            .map(|(p, &(index, _))| p.culled_count(index))
+            .sum()
+    }
+}
+
+/// The pieces of an object's triangles (in its box `[min, max]`): one
+/// group of every triangle for an object of at most [`PIECE_TRIANGLES`],
+/// else the non-empty cells of a grid across x and y, each the triangles
+/// whose centroid lies in it, in increasing order.
+fn piece_groups(tris: &[[DVec3; 3]], min: DVec3, max: DVec3) -> Vec<Vec<u32>> {
+    let all = || vec![(0..tris.len() as u32).collect::<Vec<u32>>()];
+    if tris.len() <= PIECE_TRIANGLES {
+        return all();
+    }
+    let want = tris.len().div_ceil(PIECE_TRIANGLES) as f64;
+    let (ex, ey) = (max.x - min.x, max.y - min.y);
+    let cap = MAX_PIECES_PER_AXIS as f64;
+    // kx / ky = ex / ey and kx ky = want, each in 1..=cap.
+    let (kx, ky) = if ex <= 0.0 || ey <= 0.0 {
+        let k = want.min(cap).max(1.0);
+        if ex > 0.0 {
+            (k, 1.0)
+        } else if ey > 0.0 {
+            (1.0, k)
+        } else {
+            (1.0, 1.0)
+        }
+    } else {
+        let kx = (want * ex / ey).sqrt().round().clamp(1.0, cap);
+        let ky = (want / kx).round().clamp(1.0, cap);
+        (kx, ky)
+    };
+    let (kx, ky) = (kx as usize, ky as usize);
+    if kx * ky == 1 {
+        return all();
+    }
+    let cell = |v: f64, lo: f64, e: f64, k: usize| -> usize {
+        if e > 0.0 {
+            (((v - lo) / e * k as f64).floor().max(0.0) as usize).min(k - 1)
+        } else {
+            0
+        }
+    };
+    let mut groups = vec![Vec::new(); kx * ky];
+    for (t, tri) in tris.iter().enumerate() {
+        let c = (tri[0] + tri[1] + tri[2]) / 3.0;
+        let (i, j) = (cell(c.x, min.x, ex, kx), cell(c.y, min.y, ey, ky));
+        groups[j * kx + i].push(t as u32);
+    }
+    groups.retain(|g| !g.is_empty());
+    groups
 }
 
 impl ObjectSlices {
     /// The slices of the triangles `tris` in the box `[min, max]`, `n`
-    /// along each axis where the box has an extent.
+    /// along each axis where the box has an extent (one piece of all of
+    /// an object's triangles).
     pub fn new(min: DVec3, max: DVec3, n: usize, tris: &[[DVec3; 3]]) -> Self {
         let counts = [0, 1, 2].map(|a| if max[a] > min[a] { n } else { 1 });
         let slice = |a: usize, v: f64| -> u8 {
@@ -174,6 +353,7 @@ impl ObjectSlices {
             min,
             max,
             counts,
+            triangles: (0..tris.len() as u32).collect(),
             lo,
             hi,
         }
@@ -184,7 +364,7 @@ impl ObjectSlices {
     pub fn slice_triangles(&self, axis: usize, i: usize) -> Vec<u32> {
         (0..self.lo.len())
             .filter(|&t| usize::from(self.lo[t][axis]) <= i && i <= usize::from(self.hi[t][axis]))
-            .map(|t| t as u32)
+            .map(|t| self.triangles[t])
             .collect()
     }
 
@@ -221,8 +401,8 @@ impl ObjectSlices {
         Some((a, b))
     }
 
-    /// Whether triangle `t` is culled by `index` (it lies in the hidden
-    /// box).
+    /// Whether the piece's triangle `t` is culled by `index` (it lies in
+    /// the hidden box).
     pub fn culled(&self, t: usize, index: SliceIndex) -> bool {
         (0..3).all(|axis| {
             let (from, to) = self.range(index, axis);
@@ -476,6 +656,115 @@ mod tests {
         assert_eq!(culled, 2 * 3 * 3);
     }
 
+    /// A flat terrain of `nx` x `ny` unit squares (two triangles each).
+    fn terrain(nx: usize, ny: usize) -> Vec<[DVec3; 3]> {
+        let mut tris = Vec::new();
+        for i in 0..nx {
+            for j in 0..ny {
+                let p =
+                    |x: usize, y: usize| DVec3::new(x as f64, y as f64, ((x + y) % 3) as f64 * 0.1);
+                tris.push([p(i, j), p(i + 1, j), p(i + 1, j + 1)]);
+                tris.push([p(i, j), p(i + 1, j + 1), p(i, j + 1)]);
+            }
+        }
+        tris
+    }
+
+    #[test]
+    fn big_objects_are_cut_into_pieces_across_their_footprint() {
+        // 64 x 32 squares: 4,096 triangles, 4 pieces wanted, twice as
+        // long as wide: round(sqrt(4 x 2)) = 3 along x, round(4 / 3) = 1
+        // along y.
+        let tris = terrain(64, 32);
+        let (min, max) = (DVec3::ZERO, DVec3::new(64.0, 32.0, 0.2));
+        let groups = piece_groups(&tris, min, max);
+        assert_eq!(groups.len(), 3, "{}", groups.len());
+        // Every triangle in exactly one piece, in order.
+        let mut all: Vec<u32> = groups.concat();
+        assert!(groups.iter().all(|g| g.windows(2).all(|w| w[0] < w[1])));
+        all.sort_unstable();
+        assert_eq!(all, (0..tris.len() as u32).collect::<Vec<_>>());
+        // Small objects stay whole, and the grid never passes its cap.
+        assert_eq!(piece_groups(&tris[..PIECE_TRIANGLES], min, max).len(), 1);
+        let huge = terrain(512, 256);
+        let groups = piece_groups(&huge, min, DVec3::new(512.0, 256.0, 0.2));
+        assert!(groups.len() <= MAX_PIECES_PER_AXIS * MAX_PIECES_PER_AXIS);
+        // (256 wanted: 23 x 11 by the footprint, 16 x 16 by the cap.)
+        assert_eq!(groups.len(), MAX_PIECES_PER_AXIS * MAX_PIECES_PER_AXIS);
+    }
+
+    #[test]
+    fn pieces_hide_what_one_index_cannot() {
+        // A terrain of 96 x 32 squares (6,144 triangles: 6 pieces wanted,
+        // 4 x 2 by its footprint); an occluder hides both ends (x < 24 and
+        // x > 72), which one box of slices cannot say.
+        let tris = terrain(96, 32);
+        let (min, max) = (DVec3::ZERO, DVec3::new(96.0, 32.0, 0.2));
+        let scene_pieces = piece_groups(&tris, min, max);
+        assert!(scene_pieces.len() >= 4, "{}", scene_pieces.len());
+        let sliced = SlicedScene {
+            slices: 8,
+            objects: vec![
+                scene_pieces
+                    .iter()
+                    .map(|g| {
+                        let own: Vec<[DVec3; 3]> = g.iter().map(|&t| tris[t as usize]).collect();
+                        let lo = own.iter().flatten().fold(DVec3::INFINITY, |a, &v| a.min(v));
+                        let hi = own
+                            .iter()
+                            .flatten()
+                            .fold(DVec3::NEG_INFINITY, |a, &v| a.max(v));
+                        let mut p = ObjectSlices::new(lo, hi, 8, &own);
+                        p.triangles = g.clone();
+                        p
+                    })
+                    .collect(),
+            ],
+            place: vec![{
+                let mut w = vec![(0, 0); tris.len()];
+                for (p, g) in scene_pieces.iter().enumerate() {
+                    for (k, &t) in g.iter().enumerate() {
+                        w[t as usize] = (p as u32, k as u32);
+                    }
+                }
+                w
+            }],
+        };
+        let mut hidden = |a: DVec3, b: DVec3| b.x <= 24.0 || a.x >= 72.0;
+        let h = sliced.hidden_slices(0, &mut hidden).expect("ends hidden");
+        assert_eq!(h.pieces.len(), scene_pieces.len());
+        assert_eq!(h.culled(), sliced.culled_count(0, &h));
+        // Culled: exactly triangles inside x <= 24 or x >= 72, as far as
+        // the pieces' slices resolve them; never one between.
+        let mut culled = 0;
+        for (t, tri) in tris.iter().enumerate() {
+            if sliced.culled(0, t, &h) {
+                culled += 1;
+                let (a, b) = (
+                    tri[0].min(tri[1]).min(tri[2]),
+                    tri[0].max(tri[1]).max(tri[2]),
+                );
+                assert!(b.x <= 24.0 || a.x >= 72.0, "triangle {t} culled: {a} {b}");
+            }
+        }
+        assert_eq!(culled, h.culled());
+        // Both ends: more than one index (one object-wide box) could cull.
+        let whole = ObjectSlices::new(min, max, 8, &tris);
+        let (_, one) = whole.best_index(&mut hidden).expect("one end");
+        assert!(culled > one, "{culled} vs {one}");
+        // The larger of two answers, piece by piece.
+        let mut a = vec![Some(h.clone()), None];
+        let mut other = h.clone();
+        other.pieces[0] = (SliceIndex::NONE, 0);
+        let last = other.pieces.len() - 1;
+        other.pieces[last].1 += 1;
+        keep_the_larger(&mut a, vec![Some(other), Some(h.clone())]);
+        let merged = a[0].as_ref().unwrap();
+        assert_eq!(merged.pieces[0], h.pieces[0]);
+        assert_eq!(merged.pieces[last].1, h.pieces[last].1 + 1);
+        assert_eq!(a[1].as_ref(), Some(&h));
+    }
+
     #[test]
     fn bad_counts_are_refused() {
         let scene = crate::scene::procedural::generate(
@@ -492,6 +781,13 @@ mod tests {
             SliceError::Count(256)
         );
         let sliced = SlicedScene::new(&scene, 16).unwrap();
-        assert!(sliced.object(0).counts.iter().filter(|c| **c == 16).count() >= 2);
+        assert!(
+            sliced.pieces(0)[0]
+                .counts
+                .iter()
+                .filter(|c| **c == 16)
+                .count()
+                >= 2
+        );
     }
 }

@@ -247,6 +247,11 @@ fn oracle_command_runs_the_shrinking_and_refuses_bad_input() {
         for r in rows {
             assert!(r["culled"].as_u64() <= r["triangles"].as_u64(), "{r}");
             assert!(r["culled"].as_u64().unwrap() > 0, "{r}");
+            // The city's objects are of few triangles: one piece each,
+            // whose index has something hidden.
+            let indices = r["indices"].as_array().unwrap();
+            assert_eq!(indices.len(), 1, "{r}");
+            assert_ne!(indices[0], serde_json::json!([0, 0, 0]), "{r}");
             let name = r["object"].as_str().unwrap();
             assert!(
                 j["potentially_visible"]
@@ -375,9 +380,9 @@ fn culled_slices_are_never_hit_by_rays() {
             let mut any = false;
             for slices in [&a, &b] {
                 for (o, s) in slices.iter().enumerate() {
-                    if let Some((index, n)) = s {
-                        assert_eq!(*n, sliced.object(o).culled_count(*index));
-                        culled += n;
+                    if let Some(h) = s {
+                        assert_eq!(h.culled(), sliced.culled_count(o, h));
+                        culled += h.culled();
                         any = true;
                     }
                 }
@@ -387,10 +392,10 @@ fn culled_slices_are_never_hit_by_rays() {
                 let o = h.object as usize;
                 let t = (h.triangle - scene.objects()[o].triangles.start) as usize;
                 for slices in [&a, &b] {
-                    if let Some(Some((index, _))) = slices.get(o) {
+                    if let Some(Some(h)) = slices.get(o) {
                         assert!(
-                            !sliced.object(o).culled(t, *index),
-                            "{name}, cell {label} {cell:?}: a ray hits triangle {t} of {} in its culled slices {index:?}",
+                            !sliced.culled(o, t, h),
+                            "{name}, cell {label} {cell:?}: a ray hits triangle {t} of {} in its culled slices {h:?}",
                             scene.objects()[o].name
                         );
                     }
@@ -400,4 +405,89 @@ fn culled_slices_are_never_hit_by_rays() {
         eprintln!("{name}: {culled} triangles culled by slices in {cells_with_slices} cells");
         assert!(culled > 0, "{name}: no slice culled anything");
     }
+}
+
+/// A hilly terrain of many triangles (cut into pieces) with blocks on it:
+/// from street cells, the pieces behind the blocks are culled by either
+/// oracle's slices, and no ray from the cell hits a culled triangle.
+#[test]
+fn terrain_pieces_culled_are_never_hit_by_rays() {
+    use crate::oracle::{boxed, scene_of};
+    use vis5d::oracle::{Oracle, OracleParams, Rasteriser};
+    use vis5d::slices::SlicedScene;
+    // 64 x 64 squares over 128 x 128 m: 8,192 triangles (8 pieces).
+    let height = |x: f32, y: f32| 2.0 * (x * 0.05).sin() * (y * 0.04).cos();
+    let mut ground = Vec::new();
+    for i in 0..64 {
+        for j in 0..64 {
+            let p = |i: i32, j: i32| {
+                let (x, y) = (i as f32 * 2.0, j as f32 * 2.0);
+                Vec3::new(x, y, height(x, y))
+            };
+            ground.push([p(i, j), p(i + 1, j), p(i + 1, j + 1)]);
+            ground.push([p(i, j), p(i + 1, j + 1), p(i, j + 1)]);
+        }
+    }
+    let mut objects = vec![ground];
+    // Blocks 14 m square, 12 m tall, sunk 3 m into the ground, streets
+    // of 10 m between them.
+    for bi in 0..5 {
+        for bj in 0..5 {
+            let lo = Vec3::new(6.0 + 24.0 * bi as f32, 6.0 + 24.0 * bj as f32, -3.0);
+            objects.push(boxed(lo, lo + Vec3::new(14.0, 14.0, 15.0)));
+        }
+    }
+    let scene = scene_of(objects);
+    let sliced = SlicedScene::new(&scene, 16).unwrap();
+    assert!(sliced.pieces(0).len() > 4, "{}", sliced.pieces(0).len());
+    let tracer = Tracer::new(&scene);
+    let shrink = ShrinkOracle::new(&scene, ShrinkParams::default()).unwrap();
+    let extended = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    let mut rng = Pcg64::seed_from_u64(0x7e77a1);
+    let mut culled = [0usize; 2];
+    for k in 0..6 {
+        // A street point: on a street between the blocks, 1-3 m up.
+        let along = 1.0 + 24.0 * rng.random_range(0..5) as f32 + rng.random_range(0.0..2.0);
+        let across = rng.random_range(6.0..110.0);
+        let (x, y) = if k % 2 == 0 {
+            (along, across)
+        } else {
+            (across, along)
+        };
+        let z = height(x, y) + rng.random_range(1.0..3.0);
+        let size = [0.5, 2.0, 4.0][k % 3];
+        let cell = Aabb::new(Vec3::new(x, y, z), Vec3::new(x + size, y + size, z + 1.0));
+        let answers = [
+            extended.cell_slices(&cell, None, &sliced).slices,
+            shrink.cell_slices(&cell, &sliced).slices,
+        ];
+        for (m, slices) in answers.iter().enumerate() {
+            if let Some(Some(h)) = slices.first() {
+                assert_eq!(h.culled(), sliced.culled_count(0, h));
+                culled[m] += h.culled();
+            }
+        }
+        let rays: Vec<Ray> = (0..100_000)
+            .map(|_| Ray::new(uniform_point(&mut rng, &cell), uniform_direction(&mut rng)))
+            .collect();
+        for h in tracer.closest_hits(&rays).into_iter().flatten() {
+            let o = h.object as usize;
+            let t = (h.triangle - scene.objects()[o].triangles.start) as usize;
+            for (m, slices) in answers.iter().enumerate() {
+                if let Some(Some(hidden)) = slices.get(o) {
+                    assert!(
+                        !sliced.culled(o, t, hidden),
+                        "method {m}, cell {cell:?}: a ray hits triangle {t} of object {o} in its culled slices {hidden:?}"
+                    );
+                }
+            }
+        }
+    }
+    eprintln!(
+        "terrain triangles culled: extended {}, shrink {}",
+        culled[0], culled[1]
+    );
+    // The terrain (8,192 triangles, under every cell) is mostly behind
+    // the blocks from the streets.
+    assert!(culled[0] > 6 * 2000, "{culled:?}");
 }
