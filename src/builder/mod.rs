@@ -493,6 +493,7 @@ pub fn file_with_params(
             })
             .collect(),
         tree,
+        slices: None,
     }
 }
 

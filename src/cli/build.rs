@@ -224,6 +224,16 @@ pub struct BuildArgs {
     /// rather than running for hours or out of memory.
     #[arg(long, default_value_t = BuildParams::default().max_nodes, value_parser = clap::value_parser!(u64).range(1..=4_294_967_295))]
     max_nodes: u64,
+    /// Slices (papers/004): cut every object into N slices along each
+    /// axis (an object of over 1,024 triangles into pieces across x and y
+    /// first) and store, per leaf, the slices that the extended-projection
+    /// oracle proves hidden from the leaf's box of positions, on the
+    /// sampled tree as on the conservative one. Queries then answer the
+    /// ranges of each visible object's triangles to draw (`vis5d query
+    /// --triangles`, `Pvs::query_view_triangles`). One oracle run per
+    /// distinct box of positions [0 (off) to 127].
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=127))]
+    slices: u8,
 }
 
 impl BuildArgs {
@@ -289,7 +299,65 @@ struct BuildReport {
     seconds: StageSeconds,
     pixel_error: Option<PixelErrorReport>,
     coding_sizes: Vec<CodingSize>,
+    slices: Option<SliceReport>,
     written: Option<Written>,
+}
+
+/// What `--slices` added to the file.
+#[derive(Serialize)]
+struct SliceReport {
+    /// Slices an axis.
+    slices: u8,
+    /// Pieces over all objects.
+    pieces: usize,
+    /// Oracle runs: one per distinct box of positions of the leaves.
+    oracle_cells: usize,
+    /// (leaf, object) pairs with hidden slices stored.
+    entries: usize,
+    seconds: f64,
+}
+
+/// With `--slices N`: the slices of `tree`'s leaves, proved by `oracle`
+/// (made here, on the CPU, for a sampled tree), and what to report.
+fn tree_slices(
+    args: &BuildArgs,
+    scene: &Scene,
+    tree: &vis5d::tree::VisTree,
+    oracle: Option<&Oracle>,
+    conservative: bool,
+) -> Result<Option<(vis5d::slices::TreeSlices, SliceReport)>> {
+    if args.slices == 0 || args.dry_run {
+        return Ok(None);
+    }
+    let start = Instant::now();
+    let sliced = vis5d::slices::SlicedScene::new(scene, args.slices.into())
+        .map_err(|e| anyhow::anyhow!("--slices: {e}"))?;
+    let made;
+    let oracle = match oracle {
+        Some(o) => o,
+        None => {
+            made = Oracle::new(scene, OracleParams::default(), Rasteriser::cpu())?;
+            &made
+        }
+    };
+    let bar = progress_bar("slicing", 1);
+    let cells = std::sync::atomic::AtomicUsize::new(0);
+    let leaves = vis5d::slices::leaf_slices(tree, oracle, &sliced, conservative, &|done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+        cells.store(total, std::sync::atomic::Ordering::Relaxed);
+    });
+    bar.finish_and_clear();
+    let report = SliceReport {
+        slices: args.slices,
+        pieces: (0..scene.objects().len())
+            .map(|o| sliced.pieces(o).len())
+            .sum(),
+        oracle_cells: cells.into_inner(),
+        entries: leaves.iter().map(Vec::len).sum(),
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    Ok(Some((vis5d::slices::TreeSlices { sliced, leaves }, report)))
 }
 
 /// What `build` wrote.
@@ -400,10 +468,12 @@ pub fn run(args: &BuildArgs) -> Result<()> {
     });
     let verify_seconds = start.elapsed().as_secs_f64();
     let sizes = coding_sizes(&tree);
+    let slices = tree_slices(args, &scene, &tree, None, false)?;
     let written = if args.dry_run {
         None
     } else {
-        let file = vis5d::builder::to_file(&scene, tree.clone(), &params, args.coding);
+        let mut file = vis5d::builder::to_file(&scene, tree.clone(), &params, args.coding);
+        file.slices = slices.as_ref().map(|(s, _)| s.clone());
         Some(write_tree(&file, &output)?)
     };
     let mut report = build_report(
@@ -416,6 +486,7 @@ pub fn run(args: &BuildArgs) -> Result<()> {
         [load_seconds, bvh_seconds, verify_seconds],
     );
     report.coding_sizes = sizes;
+    report.slices = slices.map(|(_, r)| r);
     report.written = written;
     let mut out = io::stdout().lock();
     if args.json {
@@ -494,6 +565,9 @@ fn write_tree(file: &codec::V5dFile, output: &std::path::Path) -> Result<Written
     if back.tree != file.tree {
         bail!("internal error: the coded tree decodes to another tree");
     }
+    if back.slices != file.slices {
+        bail!("internal error: the slices decode to other slices");
+    }
     vis5d::atomic_write::write_atomic(output, &bytes)
         .with_context(|| format!("{}: cannot write the tree", output.display()))?;
     Ok(Written {
@@ -525,6 +599,7 @@ struct BakeReport {
     seconds: BakeSeconds,
     pixel_error: Option<PixelErrorReport>,
     coding_sizes: Vec<CodingSize>,
+    slices: Option<SliceReport>,
     written: Option<Written>,
 }
 
@@ -596,6 +671,7 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
     gpu_warning.finish(oracle.rasteriser());
     tree.validate()
         .map_err(|e| anyhow::anyhow!("internal error: the baked tree is inconsistent: {e}"))?;
+    let slices = tree_slices(args, &scene, &tree, Some(&oracle), true)?;
     let summary = vis5d::builder::summarize(&tree, &scene);
     let start = Instant::now();
     let verify = (args.verify_views > 0).then(|| {
@@ -613,7 +689,8 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
     let written = if args.dry_run {
         None
     } else {
-        let file = vis5d::builder::file_with_params(&scene, tree, text, args.coding);
+        let mut file = vis5d::builder::file_with_params(&scene, tree, text, args.coding);
+        file.slices = slices.as_ref().map(|(s, _)| s.clone());
         Some(write_tree(&file, &output)?)
     };
     let b = params.root_box(&scene);
@@ -641,6 +718,7 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
         },
         pixel_error: verify.as_ref().map(|v| pixel_error_report(v, args, &scene)),
         coding_sizes,
+        slices: slices.map(|(_, r)| r),
         written,
     };
     let mut out = io::stdout().lock();
@@ -680,6 +758,7 @@ fn print_bake(out: &mut impl Write, r: &BakeReport) -> io::Result<()> {
         out,
         r.pixel_error.as_ref(),
         &r.coding_sizes,
+        r.slices.as_ref(),
         r.written.as_ref(),
     )
 }
@@ -749,6 +828,7 @@ fn build_report(
         },
         pixel_error: verify.map(|v| pixel_error_report(v, args, scene)),
         coding_sizes: Vec::new(),
+        slices: None,
         written: None,
     }
 }
@@ -806,6 +886,7 @@ fn print_build(out: &mut impl Write, r: &BuildReport) -> io::Result<()> {
         out,
         r.pixel_error.as_ref(),
         &r.coding_sizes,
+        r.slices.as_ref(),
         r.written.as_ref(),
     )
 }
@@ -815,8 +896,16 @@ fn print_tail(
     out: &mut impl Write,
     pixel_error: Option<&PixelErrorReport>,
     coding_sizes: &[CodingSize],
+    slices: Option<&SliceReport>,
     written: Option<&Written>,
 ) -> io::Result<()> {
+    if let Some(s) = slices {
+        writeln!(
+            out,
+            "  slices           {} an axis, {} pieces; {} leaf objects with hidden slices ({} oracle cells, {:.3} s)",
+            s.slices, s.pieces, s.entries, s.oracle_cells, s.seconds
+        )?;
+    }
     if let Some(p) = pixel_error {
         writeln!(
             out,

@@ -44,6 +44,21 @@ pub struct QueryArgs {
     /// Print as JSON: a list of names, or with --views a list of lists.
     #[arg(long)]
     json: bool,
+    /// Also print, per object, the ranges of its triangles to draw
+    /// (indices into the object's triangles, in the model's order): those
+    /// of the slices not proved hidden, for a file built with --slices;
+    /// else all of them. JSON: objects as {"object", "triangles",
+    /// "ranges": [[first, end), ...]}.
+    #[arg(long)]
+    triangles: bool,
+}
+
+/// An object's triangles to draw, for --triangles --json.
+#[derive(serde::Serialize)]
+struct TrianglesJson<'a> {
+    object: &'a str,
+    triangles: u64,
+    ranges: Vec<[u32; 2]>,
 }
 
 /// Runs `vis5d query`.
@@ -102,6 +117,63 @@ pub fn run(args: &QueryArgs) -> Result<()> {
             acc.union_with(&set);
         }
         std::mem::swap(&mut set, &mut acc);
+        if args.triangles {
+            let drawn = pvs.triangles_of(&positions, r.boxes(), &set);
+            let rows: Vec<TrianglesJson> = drawn
+                .iter()
+                .map(|d| TrianglesJson {
+                    object: pvs.objects()[d.object as usize].name.as_str(),
+                    triangles: d.count(),
+                    ranges: d.ranges.iter().map(|r| [r.start, r.end]).collect(),
+                })
+                .collect();
+            if args.json {
+                if many && i > 0 {
+                    write!(out, ",")?;
+                }
+                serde_json::to_writer(&mut out, &rows)?;
+            } else {
+                let total: u64 = rows.iter().map(|r| r.triangles).sum();
+                let all: u64 = set
+                    .iter()
+                    .map(|o| u64::from(pvs.objects()[o].triangles))
+                    .sum();
+                if many {
+                    writeln!(out, "# view {i}: {} objects", rows.len())?;
+                }
+                writeln!(
+                    out,
+                    "# {total} of the {all} triangles of {} objects to draw{}",
+                    rows.len(),
+                    if pvs.slices().is_some() {
+                        ""
+                    } else {
+                        " (the file has no slices: build it with --slices N)"
+                    }
+                )?;
+                for r in &rows {
+                    let ranges: Vec<String> = r
+                        .ranges
+                        .iter()
+                        .map(|[a, b]| {
+                            if b - a == 1 {
+                                a.to_string()
+                            } else {
+                                format!("{a}-{}", b - 1)
+                            }
+                        })
+                        .collect();
+                    writeln!(
+                        out,
+                        "{}: {} triangles: {}",
+                        printable(r.object),
+                        r.triangles,
+                        ranges.join(",")
+                    )?;
+                }
+            }
+            continue;
+        }
         let names: Vec<&str> = set.iter().map(|o| pvs.objects()[o].name.as_str()).collect();
         if args.json {
             if many && i > 0 {

@@ -44,6 +44,58 @@ struct StatReport {
     coding_sizes: Vec<CodingSize>,
     /// How sure the leaves' sets are (files from version 3).
     leaf_records: Option<RecordSummary>,
+    /// The leaves' hidden slices (files from version 4 built with
+    /// --slices).
+    slices: Option<SliceSummary>,
+}
+
+/// A file's slices, summarised.
+#[derive(Serialize)]
+struct SliceSummary {
+    /// Slices an axis.
+    slices: usize,
+    /// Pieces over all objects.
+    pieces: usize,
+    /// Leaves with some hidden slices.
+    leaves_with_slices: usize,
+    /// (leaf, object) pairs with hidden slices.
+    entries: usize,
+    /// Over the leaves, the mean fraction of the triangles of a leaf's
+    /// set that its slices cull.
+    mean_culled_fraction: f64,
+}
+
+fn summarise_slices(file: &vis5d::codec::V5dFile) -> Option<SliceSummary> {
+    let s = file.slices.as_ref()?;
+    let leaves = file.tree.leaves();
+    let mut fraction = 0.0;
+    for (rank, leaf) in leaves.iter().enumerate() {
+        let set = &file.tree.nodes()[leaf.node].set;
+        let all: u64 = set
+            .iter()
+            .map(|o| u64::from(file.objects[o].triangles))
+            .sum();
+        let culled: usize = s.leaves[rank]
+            .iter()
+            .map(|(o, indices)| {
+                let pieces = s.sliced.pieces(*o as usize);
+                pieces
+                    .iter()
+                    .zip(indices)
+                    .map(|(p, &i)| p.culled_count(i))
+                    .sum::<usize>()
+            })
+            .sum();
+        fraction += culled as f64 / all.max(1) as f64;
+    }
+    let objects = file.objects.len();
+    Some(SliceSummary {
+        slices: s.sliced.slices(),
+        pieces: (0..objects).map(|o| s.sliced.pieces(o).len()).sum(),
+        leaves_with_slices: s.leaves.iter().filter(|l| !l.is_empty()).count(),
+        entries: s.leaves.iter().map(Vec::len).sum(),
+        mean_culled_fraction: fraction / leaves.len().max(1) as f64,
+    })
 }
 
 /// The leaf records of a file, summarised: what the residual risk of its
@@ -109,6 +161,7 @@ pub fn run(args: &StatArgs) -> Result<()> {
         tree: summary.into(),
         coding_sizes: coding_sizes(tree),
         leaf_records: tree.leaf_records().map(summarise_records),
+        slices: summarise_slices(&file),
     };
     let mut out = io::stdout().lock();
     if args.json {
@@ -172,6 +225,22 @@ pub fn run(args: &StatArgs) -> Result<()> {
             "  leaf records     none (conservative: no set rests on ray evidence)"
         )?,
         None => writeln!(out, "  leaf records     none (a file before version 3)")?,
+    }
+    match &r.slices {
+        Some(s) => writeln!(
+            out,
+            "  slices           {} an axis, {} pieces; {} of the leaves have hidden slices ({} objects), \
+             culling {:.1}% of a leaf's triangles on average",
+            s.slices,
+            s.pieces,
+            s.leaves_with_slices,
+            s.entries,
+            100.0 * s.mean_culled_fraction
+        )?,
+        None => writeln!(
+            out,
+            "  slices           none (objects drawn whole; build with --slices N)"
+        )?,
     }
     writeln!(out, "  build parameters")?;
     for (k, v) in &r.params {

@@ -248,12 +248,13 @@ mod tests {
         bytes.extend_from_slice(&crate::codec::crc32(&bytes).to_le_bytes());
         let file = crate::codec::read_file(&bytes, crate::codec::ReadLimits::default())
             .expect("ok_decodes.bin decodes");
-        // It is a version 1 file: written again it is version 3 (a frame
+        // It is a version 1 file: written again it is version 4 (a frame
         // origin, a bounds grid, unknown bounds per object, no leaf
-        // records: a zero length after the tree), its tree's bit stream
-        // unchanged, and written once more the same bytes.
+        // records and no slices: two zero lengths after the tree), its
+        // tree's bit stream unchanged, and written once more the same
+        // bytes.
         assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), 1);
-        let v3 = crate::codec::write_file(&file);
+        let v4 = crate::codec::write_file(&file);
         let tree_bytes = crate::codec::encode(&file.tree, file.coding)
             .0
             .into_bytes()
@@ -262,10 +263,10 @@ mod tests {
             let body = &b[..b.len() - 4 - after];
             body[body.len() - (8 + tree_bytes)..].to_vec()
         };
-        assert_eq!(tail(&v3, 4), tail(&bytes, 0));
-        assert_eq!(v3[v3.len() - 8..v3.len() - 4], [0; 4]);
-        let again = crate::codec::read_file(&v3, crate::codec::ReadLimits::default()).unwrap();
+        assert_eq!(tail(&v4, 8), tail(&bytes, 0));
+        assert_eq!(v4[v4.len() - 12..v4.len() - 4], [0; 8]);
+        let again = crate::codec::read_file(&v4, crate::codec::ReadLimits::default()).unwrap();
         assert_eq!(again, file);
-        assert_eq!(crate::codec::write_file(&again), v3);
+        assert_eq!(crate::codec::write_file(&again), v4);
     }
 }

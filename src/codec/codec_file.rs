@@ -15,6 +15,7 @@ use super::codec_bounds::BoundsGrid;
 use super::codec_tree::{Coding, DecodeLimits, decode, encode};
 use crate::geom::cell::{Cell, DIMS};
 use crate::geom::{Aabb, Frame};
+use crate::slices::TreeSlices;
 use crate::tree::{LeafRecord, VisTree};
 
 /// The first 8 bytes of every `.v5d` file: a non-ASCII byte, "V5D", CR LF,
@@ -22,10 +23,10 @@ use crate::tree::{LeafRecord, VisTree};
 /// transfers).
 pub const MAGIC: [u8; 8] = [0x89, b'V', b'5', b'D', b'\r', b'\n', 0x1a, b'\n'];
 
-/// The format version this code writes. It reads this one, version 2
-/// (no leaf records) and version 1 (which has no frame origin either: its
-/// trees are in world coordinates).
-pub const VERSION: u16 = 3;
+/// The format version this code writes. It reads this one, version 3 (no
+/// slices), version 2 (no leaf records either) and version 1 (which has
+/// no frame origin either: its trees are in world coordinates).
+pub const VERSION: u16 = 4;
 
 /// The size of the fixed header of a file of `version`, before the
 /// parameters: version 2 added the frame origin (three f64) and the grid
@@ -42,9 +43,14 @@ const fn min_object_len(version: u16) -> usize {
 }
 
 /// What follows the object table in a file of `version`, at the least:
-/// the tree's bit length and (version 3) the leaf records' byte length.
+/// the tree's bit length, (version 3) the leaf records' byte length and
+/// (version 4) the slices' byte length.
 const fn min_tail_len(version: u16) -> usize {
-    if version >= 3 { 8 + 4 } else { 8 }
+    match version {
+        4.. => 8 + 4 + 4,
+        3 => 8 + 4,
+        _ => 8,
+    }
 }
 
 /// The smallest possible file of the version written: the fixed header,
@@ -82,6 +88,9 @@ pub struct V5dFile {
     pub objects: Vec<FileObject>,
     /// The tree (its root cell and grid bits are stored in the header).
     pub tree: VisTree,
+    /// The slices of the tree's leaves (papers/004), when it has them
+    /// (version 4).
+    pub slices: Option<TreeSlices>,
 }
 
 /// Bounds on what reading a file may allocate.
@@ -231,6 +240,13 @@ pub fn write_file(file: &V5dFile) -> Vec<u8> {
     }
     out.extend_from_slice(&(records.len() as u32).to_le_bytes());
     out.extend_from_slice(&records);
+    let slices = file
+        .slices
+        .as_ref()
+        .map(crate::slices::encode_section)
+        .unwrap_or_default();
+    out.extend_from_slice(&(slices.len() as u32).to_le_bytes());
+    out.extend_from_slice(&slices);
     let crc = crc32(&out);
     out.extend_from_slice(&crc.to_le_bytes());
     out
@@ -510,8 +526,13 @@ fn parse_body(body: &[u8], version: u16, limits: ReadLimits) -> Result<V5dFile, 
     let bits = c.u64("the tree's bit length")?;
     let tree_bytes = bits.div_ceil(8);
     // Version 3 has the leaf records' length (4 bytes) and the records
-    // after the tree.
-    let after = if version >= 3 { 4 } else { 0 };
+    // after the tree; version 4 the slices' length (4 bytes) and the
+    // slices after those.
+    let after = match version {
+        4.. => 8,
+        3 => 4,
+        _ => 0,
+    };
     if tree_bytes > (c.left() as u64).saturating_sub(after)
         || (version < 3 && tree_bytes != c.left() as u64)
     {
@@ -543,7 +564,13 @@ fn parse_body(body: &[u8], version: u16, limits: ReadLimits) -> Result<V5dFile, 
     }
     let records = if version >= 3 {
         let len = c.u32("the leaf records' length")? as usize;
-        if len != c.left() {
+        // Version 4: the slices' length (4 bytes) follows them.
+        let fits = if version >= 4 {
+            len.checked_add(4).is_some_and(|n| n <= c.left())
+        } else {
+            len == c.left()
+        };
+        if !fits {
             return Err(CodecError::Corrupt(format!(
                 "the leaf records take {len} bytes but {} follow",
                 c.left()
@@ -553,6 +580,29 @@ fn parse_body(body: &[u8], version: u16, limits: ReadLimits) -> Result<V5dFile, 
         (len > 0)
             .then(|| read_leaf_records(bytes, leaves))
             .transpose()?
+    } else {
+        None
+    };
+    let slices = if version >= 4 {
+        let len = c.u32("the slices' length")? as usize;
+        if len != c.left() {
+            return Err(CodecError::Corrupt(format!(
+                "the slices take {len} bytes but {} follow",
+                c.left()
+            )));
+        }
+        let bytes = c.take(len, "the slices")?;
+        if len > 0 {
+            let counts: Vec<u32> = table.iter().map(|o| o.triangles).collect();
+            let leaf_nodes: Vec<usize> = tree.leaves().iter().map(|l| l.node).collect();
+            let holds =
+                |leaf: usize, object: usize| tree.nodes()[leaf_nodes[leaf]].set.contains(object);
+            Some(crate::slices::decode_section(
+                bytes, &counts, leaves, &holds,
+            )?)
+        } else {
+            None
+        }
     } else {
         None
     };
@@ -566,6 +616,7 @@ fn parse_body(body: &[u8], version: u16, limits: ReadLimits) -> Result<V5dFile, 
         params,
         objects: table,
         tree,
+        slices,
     })
 }
 
@@ -601,6 +652,7 @@ mod tests {
                 bounds: None,
             }],
             tree,
+            slices: None,
         };
         let back = read_file(&write_file(&file), ReadLimits::default()).unwrap();
         assert_eq!(back.objects[0].name, "é".repeat(32_767));

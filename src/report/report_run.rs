@@ -412,15 +412,24 @@ pub fn run(
 
         // The tree's answer as a user gets it: the leaf sets of the
         // view's directions, culled to its frustum by the query.
-        let start = Instant::now();
-        pvs.query_view(view, &mut set);
-        let s = start.elapsed().as_secs_f64();
-        run_of(&mut runs, Method::Tree).record(scene, &t, &set, s);
-        if let Some(c) = conservative {
+        // A tree whose file has slices answers triangle ranges too.
+        for (tree, method) in std::iter::once((pvs, Method::Tree))
+            .chain(conservative.map(|c| (c, Method::ConservativeTree)))
+        {
             let start = Instant::now();
-            c.query_view(view, &mut set);
+            let ranges = if tree.slices().is_some() {
+                Some(tree.query_view_triangles(view, &mut set))
+            } else {
+                tree.query_view(view, &mut set);
+                None
+            };
             let s = start.elapsed().as_secs_f64();
-            run_of(&mut runs, Method::ConservativeTree).record(scene, &t, &set, s);
+            let run = run_of(&mut runs, method);
+            run.record(scene, &t, &set, s);
+            if let Some(ranges) = ranges {
+                let last = run.per_view.last_mut().expect("just recorded");
+                last.slice_triangles = Some(ranges.iter().map(|r| r.count()).sum());
+            }
         }
 
         let mut grid_params = GridParams {

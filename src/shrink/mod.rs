@@ -299,10 +299,9 @@ impl<'a> ShrinkOracle<'a> {
 
     /// [`ShrinkOracle::cell`], and for each object it keeps, the slices
     /// proved hidden (papers/004 sec. 3; never a slice box that touches
-    /// the cell): the
-    /// per piece, the [`crate::slices::SliceIndex`] that culls the most of
-    /// its triangles and how many, or `None` when no piece has any. The
-    /// answer's `slices` holds them, one per object.
+    /// the cell): per piece, the [`crate::slices::SliceIndex`] that culls
+    /// the most of its triangles and how many, or `None` when no piece has
+    /// any. The answer's `slices` holds them, one per object.
     pub fn cell_slices(&self, cell: &Aabb, sliced: &SlicedScene) -> ShrinkReport {
         self.run(cell, Some(sliced))
     }

@@ -37,8 +37,53 @@ use glam::DVec3;
 
 use crate::scene::Scene;
 
+mod slices_file;
+mod slices_tree;
+
+pub(crate) use slices_file::{decode as decode_section, encode as encode_section};
+pub use slices_tree::leaf_slices;
+
 /// The most slices along an axis.
 pub const MAX_SLICES: usize = 255;
+
+/// The most slices along an axis a `.v5d` file stores: an index is then
+/// one byte an axis (papers/004: "3 bytes, one for each axis").
+pub const MAX_STORED_SLICES: usize = 127;
+
+/// Per leaf of a tree, the objects it holds that have hidden slices, in
+/// increasing order: the object and one index per piece of it.
+pub type LeafSlices = Vec<(u32, Vec<SliceIndex>)>;
+
+/// A tree's slices: the scene sliced and, per leaf in preorder, the hidden
+/// slices of its objects (what a `.v5d` file of version 4 may hold).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TreeSlices {
+    /// The scene's pieces and slices.
+    pub sliced: SlicedScene,
+    /// Per leaf, in preorder.
+    pub leaves: Vec<LeafSlices>,
+}
+
+impl TreeSlices {
+    /// The indices of object `object`'s pieces in leaf `leaf` (its
+    /// preorder rank among the leaves), or `None` when nothing of it is
+    /// hidden there.
+    pub fn hidden(&self, leaf: usize, object: usize) -> Option<&[SliceIndex]> {
+        let row = self.leaves.get(leaf)?;
+        let k = row.binary_search_by_key(&(object as u32), |e| e.0).ok()?;
+        Some(&row[k].1)
+    }
+
+    /// Whether object `object`'s triangle `t` is culled in leaf `leaf`.
+    pub fn culled(&self, leaf: usize, object: usize, t: usize) -> bool {
+        self.hidden(leaf, object).is_some_and(|indices| {
+            let (p, k) = self.sliced.place(object, t);
+            indices
+                .get(p)
+                .is_some_and(|&i| self.sliced.pieces(object)[p].culled(k, i))
+        })
+    }
+}
 
 /// Why a scene cannot be sliced.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -116,7 +161,7 @@ pub fn keep_the_larger(into: &mut Vec<Option<HiddenSlices>>, other: Vec<Option<H
 
 /// One piece of an object, sliced (an object of few triangles is one
 /// piece).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct ObjectSlices {
     /// The piece's box.
     pub min: DVec3,
@@ -146,7 +191,7 @@ pub struct ObjectSlices {
 /// sliced and gets its own index. One index an object cannot say that
 /// the parts of a terrain behind the blocks on both sides of a street are
 /// hidden; one a piece can.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct SlicedScene {
     /// Slices an axis.
     slices: usize,
@@ -233,12 +278,14 @@ impl SlicedScene {
         &self.objects[i]
     }
 
-    /// Object `i`'s triangle `t`: its piece and its index there.
+    /// Object `i`'s triangle `t` (below its triangle count): its piece and
+    /// its index there.
     pub fn place(&self, i: usize, t: usize) -> (usize, usize) {
-        match self.place[i].get(t) {
-            Some(&(p, k)) => (p as usize, k as usize),
-            None => (0, t),
+        if self.objects[i].len() == 1 {
+            return (0, t);
         }
+        let (p, k) = self.place[i][t];
+        (p as usize, k as usize)
     }
 
     /// The hidden slices of object `i`, piece by piece

@@ -15,6 +15,7 @@ mod procedural;
 mod real_scenes;
 mod report;
 mod shrink;
+mod slices;
 mod sprt;
 mod trace;
 mod v5d;

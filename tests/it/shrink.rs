@@ -412,32 +412,10 @@ fn culled_slices_are_never_hit_by_rays() {
 /// oracle's slices, and no ray from the cell hits a culled triangle.
 #[test]
 fn terrain_pieces_culled_are_never_hit_by_rays() {
-    use crate::oracle::{boxed, scene_of};
     use vis5d::oracle::{Oracle, OracleParams, Rasteriser};
     use vis5d::slices::SlicedScene;
-    // 64 x 64 squares over 128 x 128 m: 8,192 triangles (8 pieces).
-    let height = |x: f32, y: f32| 2.0 * (x * 0.05).sin() * (y * 0.04).cos();
-    let mut ground = Vec::new();
-    for i in 0..64 {
-        for j in 0..64 {
-            let p = |i: i32, j: i32| {
-                let (x, y) = (i as f32 * 2.0, j as f32 * 2.0);
-                Vec3::new(x, y, height(x, y))
-            };
-            ground.push([p(i, j), p(i + 1, j), p(i + 1, j + 1)]);
-            ground.push([p(i, j), p(i + 1, j + 1), p(i, j + 1)]);
-        }
-    }
-    let mut objects = vec![ground];
-    // Blocks 14 m square, 12 m tall, sunk 3 m into the ground, streets
-    // of 10 m between them.
-    for bi in 0..5 {
-        for bj in 0..5 {
-            let lo = Vec3::new(6.0 + 24.0 * bi as f32, 6.0 + 24.0 * bj as f32, -3.0);
-            objects.push(boxed(lo, lo + Vec3::new(14.0, 14.0, 15.0)));
-        }
-    }
-    let scene = scene_of(objects);
+    let height = terrain_height;
+    let scene = terrain_town();
     let sliced = SlicedScene::new(&scene, 16).unwrap();
     assert!(sliced.pieces(0).len() > 4, "{}", sliced.pieces(0).len());
     let tracer = Tracer::new(&scene);
@@ -490,4 +468,35 @@ fn terrain_pieces_culled_are_never_hit_by_rays() {
     // The terrain (8,192 triangles, under every cell) is mostly behind
     // the blocks from the streets.
     assert!(culled[0] > 6 * 2000, "{culled:?}");
+}
+
+/// The ground's height in [`terrain_town`].
+pub fn terrain_height(x: f32, y: f32) -> f32 {
+    2.0 * (x * 0.05).sin() * (y * 0.04).cos()
+}
+
+/// A hilly terrain of 64 x 64 squares over 128 x 128 m (8,192 triangles,
+/// object 0, cut into 8 pieces) with 5 x 5 blocks on it: 14 m square, 12
+/// m tall, sunk 3 m into the ground, streets of 10 m between them.
+pub fn terrain_town() -> Scene {
+    use crate::oracle::{boxed, scene_of};
+    let mut ground = Vec::new();
+    for i in 0..64 {
+        for j in 0..64 {
+            let p = |i: i32, j: i32| {
+                let (x, y) = (i as f32 * 2.0, j as f32 * 2.0);
+                Vec3::new(x, y, terrain_height(x, y))
+            };
+            ground.push([p(i, j), p(i + 1, j), p(i + 1, j + 1)]);
+            ground.push([p(i, j), p(i + 1, j + 1), p(i, j + 1)]);
+        }
+    }
+    let mut objects = vec![ground];
+    for bi in 0..5 {
+        for bj in 0..5 {
+            let lo = Vec3::new(6.0 + 24.0 * bi as f32, 6.0 + 24.0 * bj as f32, -3.0);
+            objects.push(boxed(lo, lo + Vec3::new(14.0, 14.0, 15.0)));
+        }
+    }
+    scene_of(objects)
 }

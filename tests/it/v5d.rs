@@ -463,29 +463,42 @@ fn leaf_records_round_trip_and_lies_are_refused() {
         assert_eq!(pvs.leaf_record(p), Some(records[k]));
     }
     // The same file as version 2: the records' length field and the
-    // records go, the version says 2.
-    // The records and their u32 length are the last bytes before the
-    // checksum: three LEB128 numbers a leaf.
+    // records go (and version 4's slices' length), the version says 2.
+    // The records and their u32 length come before the slices' length (0
+    // here) and the checksum: three LEB128 numbers a leaf.
     let varint_len = |v: u32| (32 - v.leading_zeros()).div_ceil(7).max(1) as usize;
     let records_len = 4 + records
         .iter()
         .map(|r| varint_len(r.rejected) + varint_len(r.fewest_rays) + varint_len(r.undecided))
         .sum::<usize>();
-    let mut v2 = good[..good.len() - 4 - records_len].to_vec();
+    assert_eq!(good[good.len() - 8..good.len() - 4], [0; 4], "no slices");
+    let mut v2 = good[..good.len() - 8 - records_len].to_vec();
     v2[8..10].copy_from_slice(&2u16.to_le_bytes());
     let crc = codec::crc32(&v2);
     v2.extend_from_slice(&crc.to_le_bytes());
     let old = codec::read_file(&v2, ReadLimits::default()).unwrap();
     assert_eq!(old.tree.leaf_records(), None);
     assert_eq!(old.tree.nodes(), tree.nodes());
+    // And as version 3: the slices' length goes.
+    let mut v3 = good[..good.len() - 8].to_vec();
+    v3[8..10].copy_from_slice(&3u16.to_le_bytes());
+    let crc = codec::crc32(&v3);
+    v3.extend_from_slice(&crc.to_le_bytes());
+    let old3 = codec::read_file(&v3, ReadLimits::default()).unwrap();
+    assert_eq!(
+        old3.tree,
+        codec::read_file(&good, ReadLimits::default()).unwrap().tree
+    );
+    assert!(old3.slices.is_none());
     let pvs2 = Pvs::from_bytes(&v2).unwrap();
     assert_eq!(pvs2.leaf_record(tree.root_cell().sample([0.5; DIMS])), None);
     // Records that lie: a count that does not match, a varint that runs
     // off the end, bytes left over.
     let with_records = |records: &[u8]| {
-        let mut b = good[..good.len() - 4 - records_len].to_vec();
+        let mut b = good[..good.len() - 8 - records_len].to_vec();
         b.extend_from_slice(&(records.len() as u32).to_le_bytes());
         b.extend_from_slice(records);
+        b.extend_from_slice(&[0; 4]);
         let crc = codec::crc32(&b);
         b.extend_from_slice(&crc.to_le_bytes());
         codec::read_file(&b, ReadLimits::default())
@@ -504,7 +517,7 @@ fn leaf_records_round_trip_and_lies_are_refused() {
     huge[..5].copy_from_slice(&[0xff, 0xff, 0xff, 0xff, 0x7f]);
     let e = with_records(&huge).unwrap_err();
     assert!(e.to_string().contains("over 32 bits"), "{e}");
-    // No records at all is a valid version 3 file.
+    // No records at all is a valid file.
     let none = with_records(&[]).unwrap();
     assert_eq!(none.tree.leaf_records(), None);
     assert_eq!(none.objects.len(), s.objects().len());

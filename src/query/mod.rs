@@ -39,7 +39,12 @@ use crate::bitset::ObjectSet;
 use crate::codec::{CodecError, Coding, FileObject, ReadLimits, read_file};
 use crate::geom::cell::{Cell, DIMS, grid_value};
 use crate::geom::{Aabb, Frame};
+use crate::slices::TreeSlices;
 use crate::tree::LeafRecord;
+
+mod query_triangles;
+
+pub use query_triangles::ObjectTriangles;
 
 /// Why a `.v5d` file cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -433,6 +438,11 @@ pub struct Pvs {
     words: usize,
     /// Per node (leaves only meaningful), when the file has leaf records.
     records: Option<Vec<LeafRecord>>,
+    /// The leaves' hidden slices, when the file has them (version 4).
+    slices: Option<TreeSlices>,
+    /// Per node, its rank among the leaves in preorder (leaves only
+    /// meaningful); empty without slices.
+    leaf_rank: Vec<u32>,
 }
 
 impl Pvs {
@@ -461,6 +471,7 @@ impl Pvs {
             ..budget
         };
         let file = read_file(bytes, limits)?;
+        let slices = file.slices;
         let tree = file.tree;
         let (root, grid_bits) = (tree.root_cell(), tree.grid_bits());
         let words = tree.object_count().div_ceil(64);
@@ -504,6 +515,19 @@ impl Pvs {
                 }
             }
         }
+        let leaf_rank = if slices.is_some() {
+            let mut rank = 0;
+            nodes
+                .iter()
+                .map(|n| {
+                    let r = rank;
+                    rank += u32::from(n.dim == LEAF);
+                    r
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         Ok(Pvs {
             coding: file.coding,
             fingerprint: file.fingerprint,
@@ -515,6 +539,8 @@ impl Pvs {
             sets,
             words,
             records,
+            slices,
+            leaf_rank,
         })
     }
 

@@ -1,0 +1,204 @@
+//! Queries at slice granularity (papers/004): per visible object, the
+//! ranges of its triangles to draw, less the slices its leaves' hidden
+//! slices cull.
+//!
+//! A triangle is drawn when some leaf the query meets holds its object
+//! and does not cull it; so the answer is the union of what each leaf
+//! would draw, as the object sets are, and a slice is culled only where
+//! every leaf met proved it hidden. Without slices in the file (or for a
+//! box of positions outside the tree's, where nothing is culled) every
+//! visible object is drawn whole.
+
+use std::f32::consts::PI;
+use std::ops::Range;
+
+use glam::{DVec3, Vec3};
+
+use super::{LEAF, Pvs, View, frustum_angles};
+use crate::bitset::ObjectSet;
+use crate::geom::Aabb;
+use crate::geom::cell::{Cell, DIMS};
+use crate::slices::TreeSlices;
+
+/// One visible object's triangles to draw.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ObjectTriangles {
+    /// The object (its index in the scene and in every set).
+    pub object: u32,
+    /// Ranges of its triangles, as indices into the object's own
+    /// triangles in the scene's order (`Scene::object_triangles`):
+    /// increasing, disjoint, not touching, never empty.
+    pub ranges: Vec<Range<u32>>,
+}
+
+impl ObjectTriangles {
+    /// The number of triangles to draw.
+    pub fn count(&self) -> u64 {
+        self.ranges.iter().map(|r| u64::from(r.end - r.start)).sum()
+    }
+}
+
+impl Pvs {
+    /// The leaves' hidden slices, when the file has them (`vis5d build
+    /// --slices N`).
+    pub fn slices(&self) -> Option<&TreeSlices> {
+        self.slices.as_ref()
+    }
+
+    /// [`Pvs::query_range`] (the objects, into `out`), and per object of
+    /// `out` the triangles to draw, in object order.
+    pub fn query_range_triangles(
+        &self,
+        positions: &Aabb,
+        theta: (f32, f32),
+        phi: (f32, f32),
+        out: &mut ObjectSet,
+    ) -> Vec<ObjectTriangles> {
+        self.query_range(positions, theta, phi, out);
+        let boxes = if theta.0 <= theta.1 {
+            vec![(theta.0, theta.1, phi.0, phi.1)]
+        } else {
+            vec![(theta.0, PI, phi.0, phi.1), (-PI, theta.1, phi.0, phi.1)]
+        };
+        self.triangles_of(positions, &boxes, out)
+    }
+
+    /// [`Pvs::query_view`] (the objects, into `out`), and per object of
+    /// `out` the triangles to draw, in object order.
+    pub fn query_view_triangles(&self, view: &View, out: &mut ObjectSet) -> Vec<ObjectTriangles> {
+        self.query_view(view, out);
+        let r = view.radius.max(0.0);
+        let positions = Aabb::new(
+            view.position - Vec3::splat(r),
+            view.position + Vec3::splat(r),
+        );
+        let ranges = frustum_angles(view.dir, view.up, view.fov_x, view.fov_y);
+        self.triangles_of(&positions, ranges.boxes(), out)
+    }
+
+    /// [`Pvs::query_view_world`] (the objects, into `out`), and per
+    /// object of `out` the triangles to draw, in object order.
+    pub fn query_view_world_triangles(
+        &self,
+        eye: DVec3,
+        view: &View,
+        out: &mut ObjectSet,
+    ) -> Vec<ObjectTriangles> {
+        self.query_view_world(eye, view, out);
+        let r = DVec3::splat(f64::from(view.radius.max(0.0)));
+        let positions = self.frame.box_to_local(eye - r, eye + r);
+        let local = View {
+            position: self.frame.to_local(eye),
+            ..*view
+        };
+        let ranges = frustum_angles(local.dir, local.up, local.fov_x, local.fov_y);
+        self.triangles_of(&positions, ranges.boxes(), out)
+    }
+
+    /// The triangles to draw of each object of `objects` (the answer of
+    /// range queries of `positions` x each of the angle boxes `(theta0,
+    /// theta1, phi0, phi1)`, such as [`super::AngularRanges::boxes`]), for
+    /// the leaves those ranges meet; each object whole without slices.
+    pub fn triangles_of(
+        &self,
+        positions: &Aabb,
+        boxes: &[(f32, f32, f32, f32)],
+        objects: &ObjectSet,
+    ) -> Vec<ObjectTriangles> {
+        let whole = |o: usize| ObjectTriangles {
+            object: o as u32,
+            ranges: match self.objects[o].triangles {
+                0 => Vec::new(),
+                n => std::iter::once(0..n).collect(),
+            },
+        };
+        let Some(slices) = &self.slices else {
+            return objects.iter().map(whole).collect();
+        };
+        let mut leaves = Vec::new();
+        for &(t0, t1, p0, p1) in boxes {
+            if !self.leaves_met(positions, (t0, t1), (p0, p1), &mut leaves) {
+                // Outside the tree or not a range: nothing culled.
+                return objects.iter().map(whole).collect();
+            }
+        }
+        leaves.sort_unstable();
+        leaves.dedup();
+        objects
+            .iter()
+            .map(|o| {
+                let holding: Vec<usize> = leaves
+                    .iter()
+                    .filter(|&&node| self.set_words(node)[o / 64] >> (o % 64) & 1 == 1)
+                    .map(|&node| self.leaf_rank[node] as usize)
+                    .collect();
+                if holding.is_empty() || holding.iter().any(|&l| slices.hidden(l, o).is_none()) {
+                    return whole(o);
+                }
+                let mut ranges: Vec<Range<u32>> = Vec::new();
+                for t in 0..self.objects[o].triangles {
+                    if holding.iter().any(|&l| !slices.culled(l, o, t as usize)) {
+                        match ranges.last_mut() {
+                            Some(r) if r.end == t => r.end = t + 1,
+                            _ => ranges.push(t..t + 1),
+                        }
+                    }
+                }
+                ObjectTriangles {
+                    object: o as u32,
+                    ranges,
+                }
+            })
+            .collect()
+    }
+
+    /// Adds to `leaves` the nodes of the leaves the range meets (clipped as
+    /// [`Pvs::query_range`] clips it); `false` when the range has a NaN or
+    /// reaches outside the tree's box of positions (the query then culls
+    /// nothing). An empty range meets no leaf.
+    fn leaves_met(
+        &self,
+        positions: &Aabb,
+        theta: (f32, f32),
+        phi: (f32, f32),
+        leaves: &mut Vec<usize>,
+    ) -> bool {
+        let nan = [theta.0, theta.1, phi.0, phi.1].iter().any(|a| a.is_nan())
+            || positions.min.is_nan()
+            || positions.max.is_nan();
+        let theta = (theta.0.max(-PI), theta.1.min(PI));
+        let phi = (phi.0.max(0.0), phi.1.min(PI));
+        let empty = theta.0 > theta.1 || phi.0 > phi.1 || !positions.min.cmple(positions.max).all();
+        if empty && !nan {
+            return true;
+        }
+        let space = self.root.space();
+        let inside = positions.min.cmpge(space.min).all() && positions.max.cmple(space.max).all();
+        if nan || !inside || !positions.min.is_finite() || !positions.max.is_finite() {
+            return false;
+        }
+        let (a, b) = (positions.min, positions.max);
+        let range = Cell {
+            lo: [a.x, a.y, a.z, theta.0, phi.0],
+            hi: [b.x, b.y, b.z, theta.1, phi.1],
+        };
+        let mut stack = vec![(0usize, self.root)];
+        while let Some((i, cell)) = stack.pop() {
+            let n = self.nodes[i];
+            if n.dim == LEAF {
+                leaves.push(i);
+                continue;
+            }
+            let d = n.dim as usize;
+            debug_assert!(d < DIMS);
+            let (below, above) = cell.split(d, n.value);
+            if range.lo[d] < n.value {
+                stack.push((i + 1, below));
+            }
+            if range.hi[d] >= n.value {
+                stack.push((n.above as usize, above));
+            }
+        }
+        true
+    }
+}
