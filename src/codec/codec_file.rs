@@ -252,9 +252,34 @@ pub fn write_file(file: &V5dFile) -> Vec<u8> {
     out
 }
 
+/// Why a LEB128 number cannot be read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum VarintError {
+    /// The bytes end in the middle of it.
+    End,
+    /// Its value is over 32 bits.
+    TooBig,
+    /// It runs over 5 bytes.
+    TooLong,
+}
+
+/// Reads a LEB128 u32 at `*pos` of `bytes`, moving `pos` past it.
+pub(crate) fn get_varint(bytes: &[u8], pos: &mut usize) -> Result<u32, VarintError> {
+    let mut v: u64 = 0;
+    for shift in (0..35).step_by(7) {
+        let &b = bytes.get(*pos).ok_or(VarintError::End)?;
+        *pos += 1;
+        v |= u64::from(b & 0x7f) << shift;
+        if b & 0x80 == 0 {
+            return u32::try_from(v).map_err(|_| VarintError::TooBig);
+        }
+    }
+    Err(VarintError::TooLong)
+}
+
 /// Appends `v` as LEB128: 7 bits a byte, low first, the high bit set on
 /// every byte but the last.
-fn put_varint(out: &mut Vec<u8>, mut v: u32) {
+pub(crate) fn put_varint(out: &mut Vec<u8>, mut v: u32) {
     while v >= 0x80 {
         out.push((v as u8) | 0x80);
         v >>= 7;
@@ -274,24 +299,13 @@ fn read_leaf_records(bytes: &[u8], leaves: usize) -> Result<Vec<LeafRecord>, Cod
     }
     let mut pos = 0;
     let mut next = |what: &str| -> Result<u32, CodecError> {
-        let mut v: u64 = 0;
-        for shift in (0..35).step_by(7) {
-            let Some(&b) = bytes.get(pos) else {
-                return Err(CodecError::Corrupt(format!(
-                    "the leaf records end in the middle of {what}"
-                )));
-            };
-            pos += 1;
-            v |= u64::from(b & 0x7f) << shift;
-            if b & 0x80 == 0 {
-                return u32::try_from(v).map_err(|_| {
-                    CodecError::Corrupt(format!("a leaf record's {what} is over 32 bits"))
-                });
-            }
-        }
-        Err(CodecError::Corrupt(format!(
-            "a leaf record's {what} is over 5 bytes"
-        )))
+        get_varint(bytes, &mut pos).map_err(|e| {
+            CodecError::Corrupt(match e {
+                VarintError::End => format!("the leaf records end in the middle of {what}"),
+                VarintError::TooBig => format!("a leaf record's {what} is over 32 bits"),
+                VarintError::TooLong => format!("a leaf record's {what} is over 5 bytes"),
+            })
+        })
     };
     let mut records = Vec::with_capacity(leaves);
     for _ in 0..leaves {

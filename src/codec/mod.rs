@@ -14,6 +14,7 @@ pub use codec_file::{
     FileObject, MAGIC, MIN_FILE_LEN, ReadLimits, V5dFile, VERSION, crc32, geometry_fingerprint,
     read_file, write_file,
 };
+pub(crate) use codec_file::{VarintError, get_varint, put_varint};
 pub use codec_tree::{CodeSize, Coding, DecodeLimits, UnknownCoding, code_size, decode, encode};
 
 /// The parameter key that names how a file's tree was made; a file

@@ -761,16 +761,11 @@ impl Pvs {
         }
     }
 
-    /// Adds the objects of the range to `out`. Angles are clipped to the
-    /// root (every direction's angles lie there); an empty range adds
-    /// nothing; a range with a NaN adds everything.
-    fn accumulate(
-        &self,
-        positions: &Aabb,
-        theta: (f32, f32),
-        phi: (f32, f32),
-        out: &mut ObjectSet,
-    ) {
+    /// The range of `positions` x `theta` x `phi`, its angles clipped to
+    /// the root (every direction's angles lie there): empty, everything
+    /// (a NaN, or positions reaching outside the view box, where nothing
+    /// was sampled and nothing may be culled), or a cell to descend with.
+    fn clip_range(&self, positions: &Aabb, theta: (f32, f32), phi: (f32, f32)) -> Clipped {
         let nan = [theta.0, theta.1, phi.0, phi.1].iter().any(|a| a.is_nan())
             || positions.min.is_nan()
             || positions.max.is_nan();
@@ -778,32 +773,39 @@ impl Pvs {
         let phi = (phi.0.max(0.0), phi.1.min(PI));
         let empty = theta.0 > theta.1 || phi.0 > phi.1 || !positions.min.cmple(positions.max).all();
         if empty && !nan {
-            return;
+            return Clipped::Empty;
         }
         let space = self.root.space();
         let inside = positions.min.cmpge(space.min).all() && positions.max.cmple(space.max).all();
         if nan || !inside || !positions.min.is_finite() || !positions.max.is_finite() {
-            // Outside the view box: nothing was sampled, cull nothing.
-            for o in 0..self.objects.len() {
-                out.insert(o);
-            }
-            return;
+            return Clipped::Everything;
         }
-        let range = Cell {
-            lo: [
-                positions.min.x,
-                positions.min.y,
-                positions.min.z,
-                theta.0,
-                phi.0,
-            ],
-            hi: [
-                positions.max.x,
-                positions.max.y,
-                positions.max.z,
-                theta.1,
-                phi.1,
-            ],
+        let (a, b) = (positions.min, positions.max);
+        Clipped::Range(Cell {
+            lo: [a.x, a.y, a.z, theta.0, phi.0],
+            hi: [b.x, b.y, b.z, theta.1, phi.1],
+        })
+    }
+
+    /// Adds the objects of the range to `out`. Angles are clipped to the
+    /// root; an empty range adds nothing; a range with a NaN adds
+    /// everything ([`Pvs::clip_range`]).
+    fn accumulate(
+        &self,
+        positions: &Aabb,
+        theta: (f32, f32),
+        phi: (f32, f32),
+        out: &mut ObjectSet,
+    ) {
+        let range = match self.clip_range(positions, theta, phi) {
+            Clipped::Empty => return,
+            Clipped::Everything => {
+                for o in 0..self.objects.len() {
+                    out.insert(o);
+                }
+                return;
+            }
+            Clipped::Range(range) => range,
         };
         // The node sets are ObjectSet words over the same objects (bits past
         // the capacity 0), so the descent ORs raw words.
@@ -834,6 +836,16 @@ impl Pvs {
             self.visit(n.above as usize, above, descent);
         }
     }
+}
+
+/// A range as a query descends it ([`Pvs::clip_range`]).
+enum Clipped {
+    /// Meets nothing.
+    Empty,
+    /// Culls nothing.
+    Everything,
+    /// The cell to descend with.
+    Range(Cell),
 }
 
 /// A range query's descent: the range and the answer's words, behind one

@@ -14,10 +14,10 @@ use std::ops::Range;
 
 use glam::{DVec3, Vec3};
 
-use super::{LEAF, Pvs, View, frustum_angles};
+use super::{Clipped, LEAF, Pvs, View, frustum_angles};
 use crate::bitset::ObjectSet;
 use crate::geom::Aabb;
-use crate::geom::cell::{Cell, DIMS};
+use crate::geom::cell::DIMS;
 use crate::slices::TreeSlices;
 
 /// One visible object's triangles to draw.
@@ -163,24 +163,10 @@ impl Pvs {
         phi: (f32, f32),
         leaves: &mut Vec<usize>,
     ) -> bool {
-        let nan = [theta.0, theta.1, phi.0, phi.1].iter().any(|a| a.is_nan())
-            || positions.min.is_nan()
-            || positions.max.is_nan();
-        let theta = (theta.0.max(-PI), theta.1.min(PI));
-        let phi = (phi.0.max(0.0), phi.1.min(PI));
-        let empty = theta.0 > theta.1 || phi.0 > phi.1 || !positions.min.cmple(positions.max).all();
-        if empty && !nan {
-            return true;
-        }
-        let space = self.root.space();
-        let inside = positions.min.cmpge(space.min).all() && positions.max.cmple(space.max).all();
-        if nan || !inside || !positions.min.is_finite() || !positions.max.is_finite() {
-            return false;
-        }
-        let (a, b) = (positions.min, positions.max);
-        let range = Cell {
-            lo: [a.x, a.y, a.z, theta.0, phi.0],
-            hi: [b.x, b.y, b.z, theta.1, phi.1],
+        let range = match self.clip_range(positions, theta, phi) {
+            Clipped::Empty => return true,
+            Clipped::Everything => return false,
+            Clipped::Range(range) => range,
         };
         let mut stack = vec![(0usize, self.root)];
         while let Some((i, cell)) = stack.pop() {

@@ -6,16 +6,7 @@
 use glam::DVec3;
 
 use super::{MAX_STORED_SLICES, ObjectSlices, SliceIndex, SlicedScene, TreeSlices};
-use crate::codec::CodecError;
-
-/// Appends `v` as LEB128 (7 bits a byte, low first).
-fn put_varint(out: &mut Vec<u8>, mut v: u32) {
-    while v >= 0x80 {
-        out.push((v as u8) | 0x80);
-        v >>= 7;
-    }
-    out.push(v as u8);
-}
+use crate::codec::{CodecError, VarintError, get_varint, put_varint};
 
 /// Writes the section's bytes (without its length). `slices` must satisfy
 /// what [`decode`] checks: at most [`MAX_STORED_SLICES`] slices an axis,
@@ -78,19 +69,13 @@ impl<'a> Bytes<'a> {
     }
 
     fn varint(&mut self, what: &str) -> Result<u32, CodecError> {
-        let mut v: u64 = 0;
-        for shift in (0..35).step_by(7) {
-            let b = self.u8(what)?;
-            v |= u64::from(b & 0x7f) << shift;
-            if b & 0x80 == 0 {
-                return u32::try_from(v).map_err(|_| {
-                    CodecError::Corrupt(format!("the slices' {what} is over 32 bits"))
-                });
-            }
-        }
-        Err(CodecError::Corrupt(format!(
-            "the slices' {what} is over 5 bytes"
-        )))
+        get_varint(self.bytes, &mut self.pos).map_err(|e| {
+            CodecError::Corrupt(match e {
+                VarintError::End => format!("the slices end in the middle of {what}"),
+                VarintError::TooBig => format!("the slices' {what} is over 32 bits"),
+                VarintError::TooLong => format!("the slices' {what} is over 5 bytes"),
+            })
+        })
     }
 
     fn left(&self) -> usize {
