@@ -203,6 +203,27 @@ fn build_and_query_with_slices_on_the_command_line() {
     let j: serde_json::Value = serde_json::from_slice(&built.stdout).unwrap();
     assert_eq!(j["slices"]["slices"], 8, "{j}");
     assert!(j["slices"]["oracle_cells"].as_u64().unwrap() > 0, "{j}");
+    // The same bytes on one thread.
+    let one = dir.path().join("one.v5d");
+    let one = one.to_str().unwrap();
+    let again = vis5d(&[
+        "build",
+        "scenes/apartment.obj",
+        "--conservative",
+        "--max-depth",
+        "4",
+        "--slices",
+        "8",
+        "--threads",
+        "1",
+        "-o",
+        one,
+    ]);
+    assert!(again.status.success(), "{}", text(&again.stderr));
+    assert!(
+        std::fs::read(out).unwrap() == std::fs::read(one).unwrap(),
+        "the file depends on the thread count"
+    );
     let stat = vis5d(&["stat", out, "--json"]);
     let s: serde_json::Value = serde_json::from_slice(&stat.stdout).unwrap();
     assert_eq!(s["version"], 4);
