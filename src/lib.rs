@@ -132,7 +132,6 @@ pub mod sample;
 pub mod scene;
 #[cfg(feature = "builder")]
 pub mod shrink;
-#[cfg(feature = "builder")]
 pub mod slices;
 #[cfg(feature = "builder")]
 pub mod sprt;

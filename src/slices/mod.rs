@@ -35,12 +35,15 @@
 
 use glam::DVec3;
 
+#[cfg(feature = "builder")]
 use crate::scene::Scene;
 
 mod slices_file;
+#[cfg(feature = "builder")]
 mod slices_tree;
 
 pub(crate) use slices_file::{decode as decode_section, encode as encode_section};
+#[cfg(feature = "builder")]
 pub use slices_tree::leaf_slices;
 
 /// The most slices along an axis.
@@ -208,6 +211,7 @@ pub const PIECE_TRIANGLES: usize = 1024;
 /// The most pieces along x or y.
 pub const MAX_PIECES_PER_AXIS: usize = 16;
 
+#[cfg(feature = "builder")]
 impl SlicedScene {
     /// Cuts every object of `scene` into pieces (see the type) and each
     /// piece into `slices` slices along each axis (one along an axis
@@ -267,7 +271,9 @@ impl SlicedScene {
             place,
         })
     }
+}
 
+impl SlicedScene {
     /// Slices an axis.
     pub fn slices(&self) -> usize {
         self.slices
@@ -329,6 +335,7 @@ impl SlicedScene {
 /// group of every triangle for an object of at most [`PIECE_TRIANGLES`],
 /// else the non-empty cells of a grid across x and y, each the triangles
 /// whose centroid lies in it, in increasing order.
+#[cfg(feature = "builder")]
 fn piece_groups(tris: &[[DVec3; 3]], min: DVec3, max: DVec3) -> Vec<Vec<u32>> {
     let all = || vec![(0..tris.len() as u32).collect::<Vec<u32>>()];
     if tris.len() <= PIECE_TRIANGLES {
@@ -704,6 +711,7 @@ mod tests {
     }
 
     /// A flat terrain of `nx` x `ny` unit squares (two triangles each).
+    #[cfg(feature = "builder")]
     fn terrain(nx: usize, ny: usize) -> Vec<[DVec3; 3]> {
         let mut tris = Vec::new();
         for i in 0..nx {
@@ -718,6 +726,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(feature = "builder")]
     fn big_objects_are_cut_into_pieces_across_their_footprint() {
         // 64 x 32 squares: 4,096 triangles, 4 pieces wanted, twice as
         // long as wide: round(sqrt(4 x 2)) = 3 along x, round(4 / 3) = 1
@@ -741,6 +750,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(feature = "builder")]
     fn pieces_hide_what_one_index_cannot() {
         // A terrain of 96 x 32 squares (6,144 triangles: 6 pieces wanted,
         // 4 x 2 by its footprint); an occluder hides both ends (x < 24 and
@@ -813,6 +823,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(feature = "builder")]
     fn bad_counts_are_refused() {
         let scene = crate::scene::procedural::generate(
             crate::scene::procedural::SceneKind::Apartment,
