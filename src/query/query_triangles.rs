@@ -99,6 +99,7 @@ impl Pvs {
     /// range queries of `positions` x each of the angle boxes `(theta0,
     /// theta1, phi0, phi1)`, such as [`super::AngularRanges::boxes`]), for
     /// the leaves those ranges meet; each object whole without slices.
+    /// Objects past the file's count are left out.
     pub fn triangles_of(
         &self,
         positions: &Aabb,
@@ -112,20 +113,22 @@ impl Pvs {
                 n => std::iter::once(0..n).collect(),
             },
         };
+        let known = |o: &usize| *o < self.objects.len();
         let Some(slices) = &self.slices else {
-            return objects.iter().map(whole).collect();
+            return objects.iter().filter(known).map(whole).collect();
         };
         let mut leaves = Vec::new();
         for &(t0, t1, p0, p1) in boxes {
             if !self.leaves_met(positions, (t0, t1), (p0, p1), &mut leaves) {
                 // Outside the tree or not a range: nothing culled.
-                return objects.iter().map(whole).collect();
+                return objects.iter().filter(known).map(whole).collect();
             }
         }
         leaves.sort_unstable();
         leaves.dedup();
         objects
             .iter()
+            .filter(known)
             .map(|o| {
                 let holding: Vec<usize> = leaves
                     .iter()
