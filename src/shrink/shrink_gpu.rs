@@ -144,8 +144,10 @@ struct Upload {
     items: Vec<[u32; 2]>,
     /// Per solid (tag - 1): floor bits and whether it has a floor.
     solids: Vec<[u32; 2]>,
-    /// Per batch, its items' range.
-    batches: Vec<std::ops::Range<usize>>,
+    /// Per batch, its items' range and its tiles' range.
+    batches: Vec<(std::ops::Range<usize>, std::ops::Range<usize>)>,
+    /// The tiles of every batch, in turn.
+    tiles: Vec<u32>,
 }
 
 impl ShrinkGpu {
@@ -187,6 +189,7 @@ impl ShrinkGpu {
                 storage(5, false),
                 storage(6, false),
                 storage(7, false),
+                storage(8, true),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -240,6 +243,7 @@ impl ShrinkGpu {
             upload.items.len() * 8,
             upload.lines.len() * 16,
             upload.polys.len() * 48,
+            upload.tiles.len() * 4,
         ]
         .into_iter()
         .max()
@@ -295,6 +299,7 @@ impl ShrinkGpu {
             &bytes(up.solids.iter().flatten().copied()),
             storage,
         );
+        let tiles = init("tiles", &bytes(up.tiles.iter().copied()), storage);
         let scratch = |label| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -323,13 +328,9 @@ impl ShrinkGpu {
         // resolve, per batch.
         let margin = margin(n) as f32;
         let mut entries: Vec<u8> = Vec::new();
-        let mut dispatches: Vec<(bool, u32, u32)> = Vec::new();
-        let resolve_groups = pixels.div_ceil(RESOLVE_GROUP);
-        let (rx, ry) = if resolve_groups <= MAX_GROUPS {
-            (resolve_groups, 1)
-        } else {
-            (MAX_GROUPS, resolve_groups.div_ceil(MAX_GROUPS))
-        };
+        let mut dispatches: Vec<(bool, u32, u32, u32)> = Vec::new();
+        let tps = n.min(TILES);
+        let ts = n / tps;
         let push = |start: usize, count: usize, entries: &mut Vec<u8>| {
             let offset = entries.len() as u32;
             let words: [u32; 8] = [
@@ -338,8 +339,8 @@ impl ShrinkGpu {
                 count as u32,
                 pixels as u32,
                 margin.to_bits(),
-                0,
-                0,
+                ts as u32,
+                tps as u32,
                 0,
             ];
             for w in words {
@@ -348,16 +349,23 @@ impl ShrinkGpu {
             entries.resize(entries.len() + PARAMS_STRIDE as usize - 32, 0);
             offset
         };
-        for batch in &up.batches {
-            let mut s = batch.start;
-            while s < batch.end {
-                let count = (batch.end - s).min(MAX_GROUPS * DRAW_GROUP);
+        for (items, tiles) in &up.batches {
+            let mut s = items.start;
+            while s < items.end {
+                let count = (items.end - s).min(MAX_GROUPS * DRAW_GROUP);
                 let offset = push(s, count, &mut entries);
-                dispatches.push((true, offset, count.div_ceil(DRAW_GROUP) as u32));
+                dispatches.push((true, offset, count.div_ceil(DRAW_GROUP) as u32, 1));
                 s += count;
             }
-            let offset = push(0, 0, &mut entries);
-            dispatches.push((false, offset, 0));
+            let count = tiles.len() * ts * ts;
+            let offset = push(tiles.start, count, &mut entries);
+            let groups = count.div_ceil(RESOLVE_GROUP);
+            let (rx, ry) = if groups <= MAX_GROUPS {
+                (groups, 1)
+            } else {
+                (MAX_GROUPS, groups.div_ceil(MAX_GROUPS))
+            };
+            dispatches.push((false, offset, rx as u32, ry as u32));
         }
         let params = init("params", &entries, wgpu::BufferUsages::UNIFORM);
         fn entry(
@@ -386,6 +394,7 @@ impl ShrinkGpu {
                 entry(5, &far, None),
                 entry(6, &flags, None),
                 entry(7, &maps, None),
+                entry(8, &tiles, None),
             ],
         });
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -396,15 +405,10 @@ impl ShrinkGpu {
                 label: Some("shrink cube map"),
                 timestamp_writes: None,
             });
-            for &(draw, offset, groups) in &dispatches {
+            for &(draw, offset, x, y) in &dispatches {
                 pass.set_bind_group(0, &bind, &[offset]);
-                if draw {
-                    pass.set_pipeline(&self.draw);
-                    pass.dispatch_workgroups(groups, 1, 1);
-                } else {
-                    pass.set_pipeline(&self.resolve);
-                    pass.dispatch_workgroups(rx as u32, ry as u32, 1);
-                }
+                pass.set_pipeline(if draw { &self.draw } else { &self.resolve });
+                pass.dispatch_workgroups(x, y, 1);
             }
         }
         encoder.copy_buffer_to_buffer(&maps, 0, &readback, 0, (3 * pixels * 4) as u64);
@@ -471,6 +475,7 @@ fn prepare(eye: DVec3, n: usize, solids: &[&Shrunk]) -> Upload {
         items: Vec::new(),
         solids: Vec::new(),
         batches: Vec::new(),
+        tiles: Vec::new(),
     };
     let mut prepared: Vec<Prepared> = Vec::new();
     // Batches: their tiles, and the solids (indices into `prepared`).
@@ -502,8 +507,16 @@ fn prepare(eye: DVec3, n: usize, solids: &[&Shrunk]) -> Upload {
         batches[b].1.push(prepared.len());
         prepared.push(p);
     }
-    for (_, members) in &batches {
+    for (bits, members) in &batches {
         let start = up.items.len();
+        let tile0 = up.tiles.len();
+        for (w, &word) in bits.iter().enumerate() {
+            for b in 0..64 {
+                if word & (1 << b) != 0 {
+                    up.tiles.push((64 * w + b) as u32);
+                }
+            }
+        }
         for &i in members {
             let p = &prepared[i];
             let line0 = up.lines.len() as u32;
@@ -519,7 +532,7 @@ fn prepare(eye: DVec3, n: usize, solids: &[&Shrunk]) -> Upload {
                 }
             }
         }
-        up.batches.push(start..up.items.len());
+        up.batches.push((start..up.items.len(), tile0..up.tiles.len()));
     }
     if up.lines.is_empty() {
         up.lines.push([0.0; 4]);

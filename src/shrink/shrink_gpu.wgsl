@@ -7,7 +7,7 @@
 // inside bit when its centre is inside every inside line by `margin`; an
 // outline edge sets the outline bit instead.
 //
-// `resolve`: one invocation per pixel: a pixel inside and not on the
+// `resolve`: one invocation per pixel of the batch's tiles: a pixel inside and not on the
 // outline is covered by its solid with D = far, merged into the maps by
 // the smaller D; the scratch is cleared for the next batch.
 //
@@ -20,9 +20,9 @@ struct Params {
     count: u32,
     pixels: u32,
     margin: f32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
+    tile: u32,
+    tiles: u32,
+    pad: u32,
 }
 
 struct Poly {
@@ -48,6 +48,7 @@ struct Poly {
 @group(0) @binding(5) var<storage, read_write> far: array<atomic<u32>>;
 @group(0) @binding(6) var<storage, read_write> flags: array<atomic<u32>>;
 @group(0) @binding(7) var<storage, read_write> maps: array<f32>;
+@group(0) @binding(8) var<storage, read> tiles: array<u32>;
 
 // Kinds of polygon.
 const FACE: u32 = 0u;
@@ -67,7 +68,24 @@ fn draw(@builtin(global_invocation_id) gid: vec3<u32>) {
     let y0 = f32(row) - m;
     let y1 = f32(row) + 1.0 + m;
     let yc = f32(row) + 0.5;
-    for (var col = p.c0; col <= p.c1; col++) {
+    // The columns no touch line rules out, solved per line (in f32, so
+    // widened by a pixel each way: the test per pixel below decides).
+    var lo = i32(p.c0);
+    var hi = i32(p.c1);
+    let top = f32(params.n) + 8.0;
+    for (var k = 0u; k < p.ntouch; k++) {
+        let l = lines[p.first + k];
+        let kk = l.y * select(y0, y1, l.y > 0.0) + l.z;
+        if (l.x > 0.0) {
+            lo = max(lo, i32(floor(clamp(-kk / l.x - 1.0 - m, -8.0, top))) - 1);
+        } else if (l.x < 0.0) {
+            hi = min(hi, i32(floor(clamp(-kk / l.x + m, -8.0, top))) + 1);
+        }
+    }
+    if (lo > hi) {
+        return;
+    }
+    for (var col = u32(lo); col <= u32(hi); col++) {
         let x0 = f32(col) - m;
         let x1 = f32(col) + 1.0 + m;
         var touch = true;
@@ -106,10 +124,21 @@ fn draw(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 @compute @workgroup_size(256)
 fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nw: vec3<u32>) {
-    let i = gid.y * nw.x * 256u + gid.x;
-    if (i >= params.pixels) {
+    // The pixels of the batch's tiles (`tile` pixels on a side, `tiles`
+    // tiles on a side of a face).
+    let j = gid.y * nw.x * 256u + gid.x;
+    if (j >= params.count) {
         return;
     }
+    let ts = params.tile;
+    let per = ts * ts;
+    let t = tiles[params.start + j / per];
+    let w = j % per;
+    let tps = params.tiles;
+    let face = t / (tps * tps);
+    let row = ((t / tps) % tps) * ts + w / ts;
+    let col = (t % tps) * ts + w % ts;
+    let i = (face * params.n + row) * params.n + col;
     let f = atomicLoad(&flags[i]);
     if (f == 0u) {
         return;
