@@ -9,7 +9,7 @@
 //! which edges are outline edges ([`edge_inside`]). Each projected polygon
 //! becomes half-plane *lines* in pixel units (rounded to f32) and a pixel
 //! box; the GPU does the per-pixel work: one invocation per (polygon, row)
-//! tests the row's pixels, `atomicMax`es the far value (positive f32 bits
+//! solves the row's touched and inside columns, `atomicMax`es the far value (positive f32 bits
 //! order as u32) and ORs the solid's tag with an inside or outline bit;
 //! then one invocation per pixel resolves the solid's coverage (inside and
 //! not outline) into the min maps and clears the scratch.
@@ -25,25 +25,29 @@
 //! pixels ([`margin`]). Coordinates are within `[-2, n + 2]` (the
 //! projection clips to the face widened by two pixels). Evaluating a line
 //! `a x + b y + c` (unit `(a, b)`, `|c| <= 1.5 (n + 2)`) in f32, with its
-//! coefficients rounded to f32 and the pixel corners `col - m` and
-//! `col + 1 + m` rounded too, errs by at most about `8 * 2^-24 * 4 (n + 4)
-//! ~ 2e-6 (n + 4)`, five times below `1e-5 (n + 4)`; the `1e-3` covers the
-//! f64 errors of the lines (below `1e-9` pixel) and the reference's own
-//! `1e-7` pixel widening many times over.
+//! coefficients rounded to f32, errs by at most about `8 * 2^-24 * 4 (n +
+//! 4) ~ 2e-6 (n + 4)`, five times below `1e-5 (n + 4)`; solving it for the
+//! column (one division, one subtraction) adds an error of a few f32 ulps
+//! of a column below `n + 8`, which is below `m` in distance too. The
+//! `1e-3` covers the f64 errors of the lines (below `1e-9` pixel) and the
+//! reference's own `1e-7` pixel widening many times over. The shader
+//! solves, per row and line, the columns that pass, and widens (touch) or
+//! shrinks (inside) each line by a further `m` to absorb those errors:
 //! - *Touch* (far values, outline edges): every line is a *supporting*
 //!   line, shifted in f64 until all the polygon's vertices lie on its inner
 //!   side, so the lines bound a superset of the polygon (whatever its
-//!   shape or degeneracy); a pixel is touched unless one line has the
-//!   whole pixel square grown by `m` outside it. A pixel the reference
+//!   shape or degeneracy); a pixel is touched when its square grown by `m`
+//!   has a corner within `m` of the inner side of every line (and lies in
+//!   the polygon's pixel box, grown by `2 m`). A pixel the reference
 //!   touches (its square grown by `1e-7` meets the polygon) is therefore
 //!   touched here: far values are never smaller, outlines never fewer.
 //! - *Inside* (pixel centres): the polygon's vertices closer than
 //!   [`MERGE`] to the previous one are dropped (a subset of the vertices
 //!   spans a subset of the convex polygon), the rest must be convex in f64
 //!   (else no centre counts as inside), and a centre is inside when it is
-//!   at least `m` inside every edge line. With edges at least `1e-4` long,
-//!   an edge line's direction errs by below `1e-8`, so it strays below
-//!   `1e-4` pixel from the true edge across the map: such a centre is
+//!   at least `2 m` inside every edge line. With edges at least `1e-4`
+//!   long, an edge line's direction errs by below `1e-8`, so it strays
+//!   below `1e-4` pixel from the true edge across the map: such a centre is
 //!   inside the reference's polygon by far more than its rounding.
 //! - Far values and floors are rounded up to f32 ([`up32`]); a solid whose
 //!   values do not fit is skipped.
@@ -532,7 +536,8 @@ fn prepare(eye: DVec3, n: usize, solids: &[&Shrunk]) -> Upload {
                 }
             }
         }
-        up.batches.push((start..up.items.len(), tile0..up.tiles.len()));
+        up.batches
+            .push((start..up.items.len(), tile0..up.tiles.len()));
     }
     if up.lines.is_empty() {
         up.lines.push([0.0; 4]);

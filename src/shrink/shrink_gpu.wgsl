@@ -1,11 +1,12 @@
 // The shrinking oracle's cube map on the GPU (shrink_gpu.rs).
 //
-// `draw`: one invocation per (polygon, row): the pixels of the row within
-// the polygon's pixel box are tested against its touch lines (each pixel's
-// square grown by `margin`); a touched pixel takes the polygon's far value
-// (atomicMax on the f32 bits, all positive) and its solid's tag, and the
-// inside bit when its centre is inside every inside line by `margin`; an
-// outline edge sets the outline bit instead.
+// `draw`: one invocation per (polygon, row): the row's touched columns
+// (within the polygon's pixel box; each pixel's square grown by `margin`,
+// and within `margin` of every touch line) and its inside columns (centre
+// at least 2 `margin` inside every inside line) are solved line by line;
+// a touched pixel takes the polygon's far value (atomicMax on the f32
+// bits, all positive) and its solid's tag, with the inside bit where the
+// centre is inside; an outline edge sets the outline bit instead.
 //
 // `resolve`: one invocation per pixel of the batch's tiles: a pixel inside and not on the
 // outline is covered by its solid with D = far, merged into the maps by
@@ -68,57 +69,63 @@ fn draw(@builtin(global_invocation_id) gid: vec3<u32>) {
     let y0 = f32(row) - m;
     let y1 = f32(row) + 1.0 + m;
     let yc = f32(row) + 0.5;
-    // The columns no touch line rules out, solved per line (in f32, so
-    // widened by a pixel each way: the test per pixel below decides).
+    let top = f32(params.n) + 8.0;
+    // Touched columns: those whose square grown by m has its best corner
+    // within m of (or inside) every touch line, solved per line.
     var lo = i32(p.c0);
     var hi = i32(p.c1);
-    let top = f32(params.n) + 8.0;
     for (var k = 0u; k < p.ntouch; k++) {
         let l = lines[p.first + k];
-        let kk = l.y * select(y0, y1, l.y > 0.0) + l.z;
+        let kk = l.y * select(y0, y1, l.y > 0.0) + l.z + m;
         if (l.x > 0.0) {
-            lo = max(lo, i32(floor(clamp(-kk / l.x - 1.0 - m, -8.0, top))) - 1);
+            // l.x (col + 1 + m) + kk >= 0
+            lo = max(lo, i32(ceil(clamp(-kk / l.x - 1.0 - m, -8.0, top))));
         } else if (l.x < 0.0) {
-            hi = min(hi, i32(floor(clamp(-kk / l.x + m, -8.0, top))) + 1);
+            // l.x (col - m) + kk >= 0
+            hi = min(hi, i32(floor(clamp(-kk / l.x + m, -8.0, top))));
+        } else if (kk < 0.0) {
+            return;
         }
     }
     if (lo > hi) {
         return;
     }
-    for (var col = u32(lo); col <= u32(hi); col++) {
-        let x0 = f32(col) - m;
-        let x1 = f32(col) + 1.0 + m;
-        var touch = true;
-        for (var k = 0u; k < p.ntouch; k++) {
-            let l = lines[p.first + k];
-            let x = select(x0, x1, l.x > 0.0);
-            let y = select(y0, y1, l.y > 0.0);
-            if (l.x * x + l.y * y + l.z < 0.0) {
-                touch = false;
-                break;
+    // Columns whose centre is at least 2 m inside every inside line.
+    var ilo = lo;
+    var ihi = hi;
+    if (p.kind != FACE) {
+        ilo = hi + 1;
+    }
+    for (var k = 0u; k < p.ninside && p.kind == FACE; k++) {
+        let l = lines[p.first + p.ntouch + k];
+        let kk = l.y * yc + l.z - 2.0 * m;
+        if (l.x > 0.0) {
+            // l.x (col + 0.5) + kk >= 0
+            ilo = max(ilo, i32(ceil(clamp(-kk / l.x - 0.5, -8.0, top))));
+        } else if (l.x < 0.0) {
+            ihi = min(ihi, i32(floor(clamp(-kk / l.x - 0.5, -8.0, top))));
+        } else if (kk < 0.0) {
+            ilo = hi + 1;
+        }
+    }
+    let base = p.base + row * params.n;
+    let outline = (p.tag << 2u) | 2u;
+    let touched = p.tag << 2u;
+    let inside = touched | 1u;
+    for (var c = lo; c <= hi; c++) {
+        let px = base + u32(c);
+        // Atomics only where they change something (plain loads first:
+        // on a CPU driver an atomic costs far more than a load).
+        var bits = outline;
+        if (p.kind != OUTLINE) {
+            if (atomicLoad(&far[px]) < p.far) {
+                atomicMax(&far[px], p.far);
             }
+            bits = select(touched, inside, c >= ilo && c <= ihi);
         }
-        if (!touch) {
-            continue;
+        if ((atomicLoad(&flags[px]) & bits) != bits) {
+            atomicOr(&flags[px], bits);
         }
-        let px = p.base + row * params.n + col;
-        if (p.kind == OUTLINE) {
-            atomicOr(&flags[px], (p.tag << 2u) | 2u);
-            continue;
-        }
-        atomicMax(&far[px], p.far);
-        var inside = p.kind == FACE;
-        if (inside) {
-            let xc = f32(col) + 0.5;
-            for (var k = 0u; k < p.ninside; k++) {
-                let l = lines[p.first + p.ntouch + k];
-                if (l.x * xc + l.y * yc + l.z < m) {
-                    inside = false;
-                    break;
-                }
-            }
-        }
-        atomicOr(&flags[px], (p.tag << 2u) | select(0u, 1u, inside));
     }
 }
 
