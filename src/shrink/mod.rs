@@ -54,6 +54,11 @@
 //! deep enough inside, see `shrink_mesh.rs`), exact cube-map coverage of
 //! each solid's outline instead of hardware occlusion queries, and no
 //! merging of abutting solids.
+//!
+//! The cube map is drawn on the CPU (`shrink_cube.rs`, the reference) or
+//! on the GPU (`shrink_gpu.rs`, wgpu compute shaders, feature `gpu`),
+//! which covers only pixels the CPU covers, with depths no smaller
+//! ([`ShrinkOracle::with_rasteriser`]).
 
 mod shrink_cube;
 mod shrink_geom;
