@@ -189,11 +189,11 @@ impl ShrinkGpu {
                 storage(1, true),
                 storage(2, true),
                 storage(3, true),
-                storage(4, true),
+                storage(4, false),
                 storage(5, false),
                 storage(6, false),
                 storage(7, false),
-                storage(8, true),
+                storage(8, false),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -243,8 +243,8 @@ impl ShrinkGpu {
         let device = gpu.device();
         let limits = device.limits();
         let biggest = [
-            3 * pixels * 4,
-            upload.items.len() * 8,
+            pixels * 4,
+            (upload.items.len() + upload.tiles.len() + upload.solids.len()) * 8,
             upload.lines.len() * 16,
             upload.polys.len() * 48,
             upload.tiles.len() * 4,
@@ -297,13 +297,20 @@ impl ShrinkGpu {
             &bytes(up.lines.iter().flatten().map(|x| x.to_bits())),
             storage,
         );
-        let items = init("items", &bytes(up.items.iter().flatten().copied()), storage);
-        let solids = init(
-            "solids",
-            &bytes(up.solids.iter().flatten().copied()),
+        let tiles_at = up.items.len();
+        let solids_at = tiles_at + up.tiles.len();
+        let items = init(
+            "items",
+            &bytes(
+                up.items
+                    .iter()
+                    .flatten()
+                    .copied()
+                    .chain(up.tiles.iter().flat_map(|&t| [t, 0]))
+                    .chain(up.solids.iter().flatten().copied()),
+            ),
             storage,
         );
-        let tiles = init("tiles", &bytes(up.tiles.iter().copied()), storage);
         let scratch = |label| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -314,19 +321,28 @@ impl ShrinkGpu {
         };
         let far = scratch("far");
         let flags = scratch("flags");
-        let mut start = vec![f32::MAX; 2 * pixels];
-        start.extend(std::iter::repeat_n(-f32::MAX, pixels));
-        let maps = init(
-            "maps",
-            &bytes(start.iter().map(|x| x.to_bits())),
-            storage | wgpu::BufferUsages::COPY_SRC,
-        );
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("maps readback"),
-            size: (3 * pixels * 4) as u64,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        // The three maps (D, D on floors, F), and their readbacks.
+        let size = (pixels * 4) as u64;
+        let maps: Vec<wgpu::Buffer> = [f32::MAX, f32::MAX, -f32::MAX]
+            .into_iter()
+            .map(|value| {
+                init(
+                    "map",
+                    &bytes(std::iter::repeat_n(value.to_bits(), pixels)),
+                    storage | wgpu::BufferUsages::COPY_SRC,
+                )
+            })
+            .collect();
+        let readbacks: Vec<wgpu::Buffer> = (0..3)
+            .map(|_| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("map readback"),
+                    size,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            })
+            .collect();
 
         // One Params entry per dispatch: draws chunk by chunk, then the
         // resolve, per batch.
@@ -345,7 +361,7 @@ impl ShrinkGpu {
                 margin.to_bits(),
                 ts as u32,
                 tps as u32,
-                0,
+                solids_at as u32,
             ];
             for w in words {
                 entries.extend_from_slice(&w.to_ne_bytes());
@@ -362,7 +378,7 @@ impl ShrinkGpu {
                 s += count;
             }
             let count = tiles.len() * ts * ts;
-            let offset = push(tiles.start, count, &mut entries);
+            let offset = push(tiles_at + tiles.start, count, &mut entries);
             let groups = count.div_ceil(RESOLVE_GROUP);
             let (rx, ry) = if groups <= MAX_GROUPS {
                 (groups, 1)
@@ -394,11 +410,11 @@ impl ShrinkGpu {
                 entry(1, &polys, None),
                 entry(2, &lines, None),
                 entry(3, &items, None),
-                entry(4, &solids, None),
+                entry(4, &maps[1], None),
                 entry(5, &far, None),
                 entry(6, &flags, None),
-                entry(7, &maps, None),
-                entry(8, &tiles, None),
+                entry(7, &maps[0], None),
+                entry(8, &maps[2], None),
             ],
         });
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -415,57 +431,48 @@ impl ShrinkGpu {
                 pass.dispatch_workgroups(x, y, 1);
             }
         }
-        encoder.copy_buffer_to_buffer(&maps, 0, &readback, 0, (3 * pixels * 4) as u64);
+        for (map, readback) in maps.iter().zip(&readbacks) {
+            encoder.copy_buffer_to_buffer(map, 0, readback, 0, size);
+        }
         gpu.queue().submit([encoder.finish()]);
 
         let (sender, receiver) = std::sync::mpsc::channel();
-        readback.map_async(wgpu::MapMode::Read, .., move |r| {
-            let _ = sender.send(r);
-        });
+        for readback in &readbacks {
+            let sender = sender.clone();
+            readback.map_async(wgpu::MapMode::Read, .., move |r| {
+                let _ = sender.send(r);
+            });
+        }
         device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| GpuError::Readback(e.to_string()))?;
-        receiver
-            .recv()
-            .map_err(|_| GpuError::Readback("the mapping was never answered".into()))?
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
-        let values: Vec<f32> = {
-            let data = readback
-                .get_mapped_range(..)
+        for _ in &readbacks {
+            receiver
+                .recv()
+                .map_err(|_| GpuError::Readback("the mapping was never answered".into()))?
                 .map_err(|e| GpuError::Readback(e.to_string()))?;
-            data.chunks_exact(4)
-                .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
-                .collect()
+        }
+        // Back to f64, the sentinels to infinities.
+        let read = |readback: &wgpu::Buffer| -> Result<Vec<f64>, GpuError> {
+            let values = {
+                let data = readback
+                    .get_mapped_range(..)
+                    .map_err(|e| GpuError::Readback(e.to_string()))?;
+                data.chunks_exact(4)
+                    .map(|b| match f32::from_ne_bytes([b[0], b[1], b[2], b[3]]) {
+                        f32::MAX => f64::INFINITY,
+                        f if f == -f32::MAX => f64::NEG_INFINITY,
+                        f => f64::from(f),
+                    })
+                    .collect()
+            };
+            readback.unmap();
+            Ok(values)
         };
-        readback.unmap();
-        let depth = |v: &[f32]| -> Vec<f64> {
-            v.iter()
-                .map(|&d| {
-                    if d >= f32::MAX {
-                        f64::INFINITY
-                    } else {
-                        f64::from(d)
-                    }
-                })
-                .collect()
-        };
-        let floor = values[2 * pixels..]
-            .iter()
-            .map(|&f| {
-                if f <= -f32::MAX {
-                    f64::NEG_INFINITY
-                } else {
-                    f64::from(f)
-                }
-            })
-            .collect();
-        Ok(CubeMap::from_maps(
-            eye,
-            n,
-            depth(&values[..pixels]),
-            depth(&values[pixels..2 * pixels]),
-            floor,
-        ))
+        let depth = read(&readbacks[0])?;
+        let depth_floor = read(&readbacks[1])?;
+        let floor = read(&readbacks[2])?;
+        Ok(CubeMap::from_maps(eye, n, depth, depth_floor, floor))
     }
 }
 

@@ -23,7 +23,8 @@ struct Params {
     margin: f32,
     tile: u32,
     tiles: u32,
-    pad: u32,
+    // Where the solids start in `items`.
+    solids: u32,
 }
 
 struct Poly {
@@ -44,12 +45,14 @@ struct Poly {
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> polys: array<Poly>;
 @group(0) @binding(2) var<storage, read> lines: array<vec4<f32>>;
+// The (polygon, row) items, then the batches' tiles (x), then per solid
+// (tag - 1) its floor's f32 bits and whether it has a floor.
 @group(0) @binding(3) var<storage, read> items: array<vec2<u32>>;
-@group(0) @binding(4) var<storage, read> solids: array<vec2<u32>>;
 @group(0) @binding(5) var<storage, read_write> far: array<atomic<u32>>;
 @group(0) @binding(6) var<storage, read_write> flags: array<atomic<u32>>;
-@group(0) @binding(7) var<storage, read_write> maps: array<f32>;
-@group(0) @binding(8) var<storage, read> tiles: array<u32>;
+@group(0) @binding(7) var<storage, read_write> depth: array<f32>;
+@group(0) @binding(4) var<storage, read_write> depth_floor: array<f32>;
+@group(0) @binding(8) var<storage, read_write> floor_of: array<f32>;
 
 // Kinds of polygon.
 const FACE: u32 = 0u;
@@ -139,7 +142,7 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
     }
     let ts = params.tile;
     let per = ts * ts;
-    let t = tiles[params.start + j / per];
+    let t = items[params.start + j / per].x;
     let w = j % per;
     let tps = params.tiles;
     let face = t / (tps * tps);
@@ -156,15 +159,14 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
     if ((f & 3u) != 1u) {
         return;
     }
-    let s = solids[(f >> 2u) - 1u];
+    let s = items[params.solids + (f >> 2u) - 1u];
     let fl = bitcast<f32>(s.x);
     if (s.y == 0u) {
-        maps[i] = min(maps[i], d);
+        depth[i] = min(depth[i], d);
     }
-    let pf = params.pixels + i;
-    let df = maps[pf];
-    if (d < df || (d == df && fl < maps[pf + params.pixels])) {
-        maps[pf] = d;
-        maps[pf + params.pixels] = fl;
+    let df = depth_floor[i];
+    if (d < df || (d == df && fl < floor_of[i])) {
+        depth_floor[i] = d;
+        floor_of[i] = fl;
     }
 }

@@ -207,6 +207,25 @@ fn oracle_command_runs_the_shrinking_and_refuses_bad_input() {
     assert!(out.status.success(), "{}", text(&out.stderr));
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(j["method"], "shrink");
+    let backend = j["backend"].as_str().unwrap();
+    assert!(
+        backend == "CPU" || backend.starts_with("GPU: "),
+        "{backend}"
+    );
+    // `--cpu`: the reference.
+    let cpu = vis5d(&[
+        "oracle",
+        "scenes/city.obj",
+        "--cell",
+        cell,
+        "--method",
+        "shrink",
+        "--cpu",
+        "--json",
+    ]);
+    assert!(cpu.status.success(), "{}", text(&cpu.stderr));
+    let c: serde_json::Value = serde_json::from_slice(&cpu.stdout).unwrap();
+    assert_eq!(c["backend"], "CPU");
     let visible = j["potentially_visible"].as_array().unwrap().len();
     assert_eq!(visible + j["hidden"].as_u64().unwrap() as usize, 211);
     assert!(j["hidden"].as_u64().unwrap() > 50, "{j}");
