@@ -562,6 +562,9 @@ fn run_shrink(args: &OracleArgs) -> Result<()> {
     let rasteriser = args.flags.rasteriser();
     let start = Instant::now();
     let oracle = ShrinkOracle::with_rasteriser(&scene, params, rasteriser)?;
+    if let Some(why) = oracle.cpu_reason() {
+        say!("note: {why}; the cube map is drawn on the CPU");
+    }
     let prepare = start.elapsed().as_secs_f64();
     let frame = scene.frame();
     let sliced = sliced_scene(&scene, args)?;

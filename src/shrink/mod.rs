@@ -229,6 +229,8 @@ pub struct ShrinkOracle<'a> {
     /// they were built.
     #[cfg(feature = "gpu")]
     gpu: Option<shrink_gpu::ShrinkGpu>,
+    /// Why the GPU of the rasteriser is not used.
+    cpu_reason: Option<String>,
 }
 
 impl<'a> ShrinkOracle<'a> {
@@ -266,16 +268,22 @@ impl<'a> ShrinkOracle<'a> {
                 twins.push(None);
             }
         }
+        #[cfg_attr(not(feature = "gpu"), allow(unused_mut))]
+        let mut cpu_reason = None;
         #[cfg(feature = "gpu")]
-        let gpu = rasteriser
-            .gpu_device()
-            .and_then(|g| match shrink_gpu::ShrinkGpu::new(g) {
+        let gpu = rasteriser.gpu_device().and_then(|g| {
+            if let Some(why) = shrink_gpu::ShrinkGpu::too_big(g, params.resolution) {
+                cpu_reason = Some(why);
+                return None;
+            }
+            match shrink_gpu::ShrinkGpu::new(g) {
                 Ok(p) => Some(p),
                 Err(e) => {
-                    rasteriser.note_gpu_failure(0, e.to_string());
+                    cpu_reason = Some(e.to_string());
                     None
                 }
-            });
+            }
+        });
         Ok(Self {
             scene,
             twins,
@@ -286,7 +294,16 @@ impl<'a> ShrinkOracle<'a> {
             rasteriser,
             #[cfg(feature = "gpu")]
             gpu,
+            cpu_reason,
         })
+    }
+
+    /// Why the cube maps are drawn on the CPU although the rasteriser has
+    /// a GPU (maps too big for it, pipelines that failed to build); `None`
+    /// otherwise (see [`Rasteriser::cpu_reason`] for a rasteriser without
+    /// one).
+    pub fn cpu_reason(&self) -> Option<&str> {
+        self.cpu_reason.as_deref()
     }
 
     /// The rasteriser the cube maps are drawn with.

@@ -224,6 +224,23 @@ impl ShrinkGpu {
         })
     }
 
+    /// Why maps of side `n` cannot be made on `gpu`'s device (a map's
+    /// buffer past its limits), if they cannot.
+    pub(super) fn too_big(gpu: &GpuRasteriser, n: usize) -> Option<String> {
+        let bytes = (6 * n * n * 4) as u64;
+        let limits = gpu.device().limits();
+        let limit = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        (bytes > limit).then(|| {
+            format!(
+                "cube maps of {n} x {n} pixels a face need buffers of {bytes} bytes, more than {} \
+                 allows ({limit})",
+                gpu.adapter_name()
+            )
+        })
+    }
+
     /// The cube map of `n` x `n` pixels a face around `eye` with `solids`
     /// drawn, as [`CubeMap::draw`] would make it but for the margins (see
     /// the module's doc): never a pixel covered that the CPU leaves open,
