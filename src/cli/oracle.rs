@@ -62,9 +62,9 @@ pub struct OracleFlags {
     /// Shafts: the most cuts along one path [0 to 32].
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u8).range(0..=32))]
     pub shaft_depth: u8,
-    /// Rasterise the Depth Maps on the CPU even when a GPU adapter exists
-    /// (the default uses the GPU through wgpu, and the CPU when there is
-    /// none).
+    /// Rasterise the Depth Maps (with `--method shrink`, the cube map) on
+    /// the CPU even when a GPU adapter exists (the default uses the GPU
+    /// through wgpu, and the CPU when there is none).
     #[arg(long)]
     pub cpu: bool,
 }
@@ -559,8 +559,12 @@ fn run_shrink(args: &OracleArgs) -> Result<()> {
         ShrinkError::Parameter { name, .. } => anyhow!("{}: {e}", flag(name)),
     })?;
     let (scene, load) = load_scene(&args.file)?;
+    let rasteriser = args.flags.rasteriser();
     let start = Instant::now();
-    let oracle = ShrinkOracle::new(&scene, params)?;
+    let oracle = ShrinkOracle::with_rasteriser(&scene, params, rasteriser)?;
+    if let Some(why) = oracle.cpu_reason() {
+        say!("note: {why}; the cube map is drawn on the CPU");
+    }
     let prepare = start.elapsed().as_secs_f64();
     let frame = scene.frame();
     let sliced = sliced_scene(&scene, args)?;
@@ -568,6 +572,7 @@ fn run_shrink(args: &OracleArgs) -> Result<()> {
         Some(s) => oracle.cell_slices(&args.cell.to_local(&frame), s),
         None => oracle.cell(&args.cell.to_local(&frame)),
     };
+    GpuWarning::default().finish(oracle.rasteriser());
     let t = report.times;
     let c = report.counts;
     let json = ShrinkJson {
@@ -579,7 +584,7 @@ fn run_shrink(args: &OracleArgs) -> Result<()> {
             report.touching,
             oracle.solid_count(),
             oracle.params().resolution,
-            "cpu".to_string(),
+            oracle.backend(),
             &report.slices,
         ),
         erosion: report.erosion,
@@ -646,8 +651,8 @@ fn run_shrink(args: &OracleArgs) -> Result<()> {
     let s = &json.seconds;
     writeln!(
         out,
-        "time: load {:.3} s, prepare {:.3} s, cell {:.3} s (shrink {:.3}, rasterise {:.3}, test {:.3}); cube map on the CPU",
-        s.load, s.prepare, s.cell, s.shrink, s.rasterise, s.test
+        "time: load {:.3} s, prepare {:.3} s, cell {:.3} s (shrink {:.3}, rasterise {:.3}, test {:.3}); cube map on the {}",
+        s.load, s.prepare, s.cell, s.shrink, s.rasterise, s.test, json.common.backend
     )?;
     json.common.write_names(&mut out)?;
     Ok(())

@@ -77,9 +77,9 @@ pub struct ReportArgs {
     /// (off) to 255].
     #[arg(long, default_value_t = 0)]
     slices: usize,
-    /// Rasterise the oracle's depth maps on the CPU even when a GPU
-    /// adapter exists (the default uses the GPU through wgpu, and the CPU
-    /// when there is none).
+    /// Rasterise the oracle's depth maps and the shrinking's cube maps on
+    /// the CPU even when a GPU adapter exists (the default uses the GPU
+    /// through wgpu, and the CPU when there is none).
     #[arg(long)]
     cpu: bool,
     /// Cell size of the lazy occlusion grid, in pixels (papers/002 used
@@ -237,7 +237,19 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     let shrink = if args.no_shrink {
         None
     } else {
-        Some(ShrinkOracle::new(&scene, ShrinkParams::default())?)
+        // Its cube maps on the GPU too (a device of its own), unless
+        // `--cpu` (a missing adapter was noted above, or is silent when
+        // the oracle is off).
+        let rasteriser = if args.cpu {
+            Rasteriser::cpu()
+        } else {
+            Rasteriser::best()
+        };
+        Some(ShrinkOracle::with_rasteriser(
+            &scene,
+            ShrinkParams::default(),
+            rasteriser,
+        )?)
     };
     let bar = progress_bar("views", views.len() as u64);
     let gpu_warning = GpuWarning::default();
@@ -264,6 +276,9 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     bar.finish_and_clear();
     if let Some(oracle) = &oracle {
         gpu_warning.finish(oracle.rasteriser());
+    }
+    if let Some(shrink) = &shrink {
+        GpuWarning::default().finish(shrink.rasteriser());
     }
     let summaries = report_page::write(
         &args.output,

@@ -78,6 +78,8 @@ mod oracle_sweep;
 pub use oracle_check::{CheckParams, CheckReport, LeafCheck, Suspect, Violation, check_tree};
 pub(crate) use oracle_clusters::{Cluster, build as build_clusters, hidden_below};
 #[cfg(feature = "gpu")]
+pub(crate) use oracle_gpu::ErrorScopes;
+#[cfg(feature = "gpu")]
 pub use oracle_gpu::{GpuError, GpuRasteriser};
 pub use oracle_occluders::OccluderCounts;
 pub use oracle_plane::{MapJob, ProjectedOccluder, cpu_rasterise};

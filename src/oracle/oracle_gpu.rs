@@ -411,8 +411,18 @@ impl GpuRasteriser {
         Ok(Some(chunks))
     }
 
+    /// The device (for the shrinking oracle's cube maps, which share it).
+    pub(crate) fn device(&self) -> &wgpu::Device {
+        &self.device
+    }
+
+    /// The device's queue.
+    pub(crate) fn queue(&self) -> &wgpu::Queue {
+        &self.queue
+    }
+
     /// Reports a lost device or errors wgpu raised outside any scope.
-    fn check_health(&self) -> Result<(), GpuError> {
+    pub(crate) fn check_health(&self) -> Result<(), GpuError> {
         if let Some(reason) = self.lost.lock().unwrap_or_else(|p| p.into_inner()).clone() {
             return Err(GpuError::DeviceLost(reason));
         }
@@ -641,12 +651,12 @@ fn describe(info: &wgpu::AdapterInfo) -> String {
 }
 
 /// Validation, out-of-memory and internal error scopes, popped together.
-struct ErrorScopes {
+pub(crate) struct ErrorScopes {
     guards: Vec<wgpu::ErrorScopeGuard>,
 }
 
 impl ErrorScopes {
-    fn push(device: &wgpu::Device) -> Self {
+    pub(crate) fn push(device: &wgpu::Device) -> Self {
         let guards = [
             wgpu::ErrorFilter::Validation,
             wgpu::ErrorFilter::OutOfMemory,
@@ -659,7 +669,7 @@ impl ErrorScopes {
     }
 
     /// Pops the scopes (innermost first); the errors caught, joined.
-    fn pop(mut self) -> Result<(), String> {
+    pub(crate) fn pop(mut self) -> Result<(), String> {
         let mut errors = Vec::new();
         while let Some(guard) = self.guards.pop() {
             if let Some(e) = pollster::block_on(guard.pop()) {

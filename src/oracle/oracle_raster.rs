@@ -111,6 +111,21 @@ impl Rasteriser {
         )
     }
 
+    /// The GPU rasteriser, if maps go to the GPU (the shrinking oracle
+    /// draws its cube maps on the same device).
+    #[cfg(feature = "gpu")]
+    pub(crate) fn gpu_device(&self) -> Option<&GpuRasteriser> {
+        self.gpu.as_deref()
+    }
+
+    /// Counts `maps` maps that failed on the GPU (and were made on the
+    /// CPU), keeping the first failure's message.
+    #[cfg(feature = "gpu")]
+    pub(crate) fn note_gpu_failure(&self, maps: u64, message: String) {
+        self.gpu_failures.fetch_add(maps, Ordering::Relaxed);
+        let _ = self.first_failure.set(message);
+    }
+
     /// Several level-0 maps, `(side, occluders)` each: on the GPU in one
     /// submission (all redone on the CPU if it fails), else on the CPU.
     pub fn rasterise_many(&self, jobs: &[MapJob]) -> Vec<Vec<f64>> {

@@ -54,9 +54,18 @@
 //! deep enough inside, see `shrink_mesh.rs`), exact cube-map coverage of
 //! each solid's outline instead of hardware occlusion queries, and no
 //! merging of abutting solids.
+//!
+//! The cube map is drawn on the CPU (`shrink_cube.rs`, the reference) or
+//! on the GPU (`shrink_gpu.rs`, wgpu compute shaders, feature `gpu`),
+//! which covers only pixels the CPU covers, with depths no smaller
+//! ([`ShrinkOracle::with_rasteriser`]).
 
 mod shrink_cube;
 mod shrink_geom;
+#[cfg(feature = "gpu")]
+mod shrink_gpu;
+#[cfg(all(test, feature = "gpu"))]
+mod shrink_gpu_tests;
 mod shrink_mesh;
 
 pub use shrink_mesh::ShrinkCounts;
@@ -69,7 +78,9 @@ use glam::DVec3;
 
 use crate::bitset::ObjectSet;
 use crate::geom::Aabb;
-use crate::oracle::{Cluster, build_clusters, hidden_below, sliced_solids, tracer_slack};
+use crate::oracle::{
+    Cluster, Rasteriser, build_clusters, hidden_below, sliced_solids, tracer_slack,
+};
 use crate::scene::Scene;
 use crate::slices::{HiddenSlices, SlicedScene};
 use shrink_cube::CubeMap;
@@ -213,12 +224,34 @@ pub struct ShrinkOracle<'a> {
     twins: Vec<Option<usize>>,
     clusters: Vec<Vec<Cluster>>,
     cache: Mutex<HashMap<(u64, u64), Arc<ShrunkSet>>>,
+    rasteriser: Rasteriser,
+    /// The cube-map pipelines on the rasteriser's GPU, if it has one and
+    /// they were built.
+    #[cfg(feature = "gpu")]
+    gpu: Option<shrink_gpu::ShrinkGpu>,
+    /// Why the GPU of the rasteriser is not used.
+    cpu_reason: Option<String>,
 }
 
 impl<'a> ShrinkOracle<'a> {
     /// Prepares the oracle: the scene's closed solids (and solids open
-    /// only at the bottom), each object's triangle clusters.
+    /// only at the bottom), each object's triangle clusters; its cube maps
+    /// are drawn on the CPU (the reference; see
+    /// [`ShrinkOracle::with_rasteriser`] for the GPU).
     pub fn new(scene: &'a Scene, params: ShrinkParams) -> Result<Self, ShrinkError> {
+        Self::with_rasteriser(scene, params, Rasteriser::cpu())
+    }
+
+    /// [`ShrinkOracle::new`] with the cube maps drawn by `rasteriser`: on
+    /// its GPU when it has one ([`Rasteriser::best`]), never covering a
+    /// pixel the CPU would leave open nor with a smaller depth
+    /// (`shrink_gpu.rs`); a map that fails there is drawn on the CPU and
+    /// counted in [`Rasteriser::gpu_failures`].
+    pub fn with_rasteriser(
+        scene: &'a Scene,
+        params: ShrinkParams,
+        rasteriser: Rasteriser,
+    ) -> Result<Self, ShrinkError> {
         params.validate()?;
         let mut solids = Vec::new();
         let mut twins = Vec::new();
@@ -235,6 +268,22 @@ impl<'a> ShrinkOracle<'a> {
                 twins.push(None);
             }
         }
+        #[cfg_attr(not(feature = "gpu"), allow(unused_mut))]
+        let mut cpu_reason = None;
+        #[cfg(feature = "gpu")]
+        let gpu = rasteriser.gpu_device().and_then(|g| {
+            if let Some(why) = shrink_gpu::ShrinkGpu::too_big(g, params.resolution) {
+                cpu_reason = Some(why);
+                return None;
+            }
+            match shrink_gpu::ShrinkGpu::new(g) {
+                Ok(p) => Some(p),
+                Err(e) => {
+                    cpu_reason = Some(e.to_string());
+                    None
+                }
+            }
+        });
         Ok(Self {
             scene,
             twins,
@@ -242,7 +291,52 @@ impl<'a> ShrinkOracle<'a> {
             params,
             solids,
             cache: Mutex::new(HashMap::new()),
+            rasteriser,
+            #[cfg(feature = "gpu")]
+            gpu,
+            cpu_reason,
         })
+    }
+
+    /// Why the cube maps are drawn on the CPU although the rasteriser has
+    /// a GPU (maps too big for it, pipelines that failed to build); `None`
+    /// otherwise (see [`Rasteriser::cpu_reason`] for a rasteriser without
+    /// one).
+    pub fn cpu_reason(&self) -> Option<&str> {
+        self.cpu_reason.as_deref()
+    }
+
+    /// The rasteriser the cube maps are drawn with.
+    pub fn rasteriser(&self) -> &Rasteriser {
+        &self.rasteriser
+    }
+
+    /// Where the cube maps are drawn: "GPU: " and the adapter's name, or
+    /// "CPU".
+    pub fn backend(&self) -> String {
+        #[cfg(feature = "gpu")]
+        if self.gpu.is_some() {
+            return self.rasteriser.name();
+        }
+        "CPU".into()
+    }
+
+    /// The cube map around `eye` with `solids` drawn: on the GPU when
+    /// there is one (the CPU when it fails), else on the CPU.
+    fn cube_map(&self, eye: DVec3, solids: &[&Shrunk]) -> CubeMap {
+        let n = self.params.resolution;
+        #[cfg(feature = "gpu")]
+        if let (Some(p), Some(g)) = (&self.gpu, self.rasteriser.gpu_device()) {
+            match p.build(g, eye, n, solids) {
+                Ok(map) => return map,
+                Err(e) => self.rasteriser.note_gpu_failure(1, e.to_string()),
+            }
+        }
+        let mut map = CubeMap::new(eye, n);
+        for s in solids {
+            map.draw(s);
+        }
+        map
     }
 
     /// The settings.
@@ -338,19 +432,20 @@ impl<'a> ShrinkOracle<'a> {
         report.times.shrink = shrink_time;
 
         let start = Instant::now();
-        let mut map = CubeMap::new(eye, self.params.resolution);
         let (gmin, gmax) = (cmin - slack, cmax + slack);
         let above = |floor: Option<f64>| floor.is_none_or(|f| cmin.z > f + slack);
         // A closed solid and its twin on its floor are both drawn: the twin
         // hides more above the floor, the solid what is below it.
+        let mut drawn: Vec<&Shrunk> = Vec::new();
         for s in &set.solids {
             let apart = (0..3).any(|k| s.solid_max[k] < gmin[k] || s.solid_min[k] > gmax[k]);
             if apart && above(s.floor) && !s.triangles.is_empty() {
-                map.draw(s);
+                drawn.push(s);
                 report.solids_drawn += 1;
                 report.faces_drawn += s.triangles.len();
             }
         }
+        let map = self.cube_map(eye, &drawn);
         report.covered = map.covered();
         report.times.rasterise = start.elapsed();
 

@@ -52,7 +52,7 @@ pub(super) const BOX_QUADS: [[usize; 4]; 6] = [
 ];
 
 /// The six faces: the axis and its sign.
-const FACES: [(usize, f64); 6] = [
+pub(super) const FACES: [(usize, f64); 6] = [
     (0, 1.0),
     (0, -1.0),
     (1, 1.0),
@@ -114,6 +114,36 @@ impl CubeMap {
         }
     }
 
+    /// A map of `n` x `n` pixels a face around `eye` made elsewhere (on
+    /// the GPU, `shrink_gpu.rs`): `depth`, `depth_floor` and `floor` per
+    /// pixel, face-major, then row, then column, as [`CubeMap::draw`]
+    /// leaves them.
+    #[cfg(feature = "gpu")]
+    pub(super) fn from_maps(
+        eye: DVec3,
+        n: usize,
+        depth: Vec<f64>,
+        depth_floor: Vec<f64>,
+        floor: Vec<f64>,
+    ) -> Self {
+        let len = 6 * n * n;
+        assert!(depth.len() == len && depth_floor.len() == len && floor.len() == len);
+        Self {
+            eye,
+            n,
+            depth,
+            depth_floor,
+            floor,
+            scratch: Scratch::default(),
+        }
+    }
+
+    /// The map's side, and its `depth`, `depth_floor` and `floor` per pixel.
+    #[cfg(all(test, feature = "gpu"))]
+    pub(super) fn maps(&self) -> (usize, &[f64], &[f64], &[f64]) {
+        (self.n, &self.depth, &self.depth_floor, &self.floor)
+    }
+
     /// The pixels covered (finite `D`, on floors or not).
     pub fn covered(&self) -> usize {
         self.depth_floor.iter().filter(|d| d.is_finite()).count()
@@ -126,6 +156,17 @@ impl CubeMap {
         let eye = self.eye;
         let n = self.n;
         let s = &mut self.scratch;
+        if s.stamp.len() != 6 * n * n {
+            // A map made elsewhere (`from_maps`) gets its scratch now.
+            *s = Scratch {
+                stamp: vec![0; 6 * n * n],
+                inside: vec![false; 6 * n * n],
+                outline: vec![false; 6 * n * n],
+                far: vec![0.0; 6 * n * n],
+                touched: Vec::new(),
+                current: 0,
+            };
+        }
         s.current += 1;
         s.touched.clear();
         let stamp = s.current;
@@ -264,14 +305,14 @@ impl Scratch {
     }
 }
 
-fn pixel(face: usize, row: usize, col: usize, n: usize) -> usize {
+pub(super) fn pixel(face: usize, row: usize, col: usize, n: usize) -> usize {
     (face * n + row) * n + col
 }
 
 /// Whether the edge `a b` (eye-relative vertices `v`) lies inside its
 /// solid's outline from the eye: two faces, their third corners clearly
 /// on opposite sides of the plane through the eye and the edge.
-fn edge_inside(v: &[DVec3], a: u32, b: u32, third: [Option<u32>; 2]) -> bool {
+pub(super) fn edge_inside(v: &[DVec3], a: u32, b: u32, third: [Option<u32>; 2]) -> bool {
     let [Some(p), Some(q)] = third else {
         return false;
     };
@@ -287,7 +328,7 @@ fn edge_inside(v: &[DVec3], a: u32, b: u32, third: [Option<u32>; 2]) -> bool {
 /// The polygon (or segment, for two points) `points` (eye-relative)
 /// clipped to the pyramid of cube face `face` widened by two pixels, in
 /// that face's pixel coordinates. Empty when nothing is left.
-fn project(points: &[DVec3], face: usize, n: usize) -> Result<Vec<DVec2>, ThroughEye> {
+pub(super) fn project(points: &[DVec3], face: usize, n: usize) -> Result<Vec<DVec2>, ThroughEye> {
     let (axis, sign) = FACES[face];
     let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
     let g = 1.0 + 4.0 / n as f64;

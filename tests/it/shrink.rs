@@ -8,6 +8,7 @@ use glam::Vec3;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use vis5d::geom::Aabb;
+use vis5d::oracle::Rasteriser;
 use vis5d::random::{uniform_direction, uniform_point};
 use vis5d::scene::{self, Scene};
 use vis5d::shrink::{ShrinkOracle, ShrinkParams};
@@ -59,14 +60,30 @@ fn cells(scene: &Scene, rng: &mut Pcg64) -> Vec<(String, Aabb)> {
 /// Checks every cell of `name` with `rays` rays; returns the objects
 /// hidden over all cells and the violations.
 fn run(name: &str, params: ShrinkParams, rays: usize) -> (usize, Vec<String>) {
+    run_with(name, params, rays, Rasteriser::cpu())
+}
+
+/// [`run`] with the cube maps drawn by `rasteriser`.
+fn run_with(
+    name: &str,
+    params: ShrinkParams,
+    rays: usize,
+    rasteriser: Rasteriser,
+) -> (usize, Vec<String>) {
     let scene = scene::load(committed(name)).expect("committed scene loads");
     let tracer = Tracer::new(&scene);
-    let oracle = ShrinkOracle::new(&scene, params).expect("valid parameters");
+    let gpu = rasteriser.is_gpu();
+    let oracle =
+        ShrinkOracle::with_rasteriser(&scene, params, rasteriser).expect("valid parameters");
+    assert_eq!(oracle.backend().starts_with("GPU"), gpu);
     let mut rng = Pcg64::seed_from_u64(0x5412);
     let (mut hidden, mut bad) = (0, Vec::new());
     for (label, cell) in cells(&scene, &mut rng) {
         let (found, h) = violations(&oracle, &tracer, &cell, rays, &mut rng);
         hidden += h;
+        if let (failed @ 1.., first) = oracle.rasteriser().gpu_failures() {
+            bad.push(format!("{failed} cube maps failed on the GPU: {first:?}"));
+        }
         for (o, r) in found {
             bad.push(format!(
                 "{name}, cell {label} {cell:?}: {} hidden but hit by {r:?}",
@@ -99,6 +116,20 @@ fn shrinking_is_never_wrong_on_city_and_hides_much_there() {
     // The city's blocks are closed boxes: small cells among them hide most
     // of the town.
     assert!(never_wrong("city.obj") > 300);
+}
+
+#[test]
+fn shrinking_with_gpu_cube_maps_is_never_wrong_on_city_and_office() {
+    for name in ["city.obj", "office.obj"] {
+        let rasteriser = Rasteriser::best();
+        if let Some(why) = rasteriser.cpu_reason() {
+            eprintln!("skipped: {why}");
+            return;
+        }
+        let (hidden, bad) = run_with(name, ShrinkParams::default(), 100_000, rasteriser);
+        assert!(bad.is_empty(), "{bad:#?}");
+        eprintln!("{name} (GPU cube maps): {hidden} objects hidden over the cells");
+    }
 }
 
 #[test]
@@ -176,6 +207,25 @@ fn oracle_command_runs_the_shrinking_and_refuses_bad_input() {
     assert!(out.status.success(), "{}", text(&out.stderr));
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(j["method"], "shrink");
+    let backend = j["backend"].as_str().unwrap();
+    assert!(
+        backend == "CPU" || backend.starts_with("GPU: "),
+        "{backend}"
+    );
+    // `--cpu`: the reference.
+    let cpu = vis5d(&[
+        "oracle",
+        "scenes/city.obj",
+        "--cell",
+        cell,
+        "--method",
+        "shrink",
+        "--cpu",
+        "--json",
+    ]);
+    assert!(cpu.status.success(), "{}", text(&cpu.stderr));
+    let c: serde_json::Value = serde_json::from_slice(&cpu.stdout).unwrap();
+    assert_eq!(c["backend"], "CPU");
     let visible = j["potentially_visible"].as_array().unwrap().len();
     assert_eq!(visible + j["hidden"].as_u64().unwrap() as usize, 211);
     assert!(j["hidden"].as_u64().unwrap() > 50, "{j}");
