@@ -16,7 +16,8 @@
 //! uniform random points of the scene's box, geometry in them or not (the
 //! never-wrong campaign, `scripts/oracle-never-wrong.sh`).
 //!
-//! For each cell it runs the oracle (the CPU rasteriser unless `--gpu`)
+//! For each cell it runs the oracle (the CPU rasteriser unless `--gpu`,
+//! which draws the shrinking's cube maps on the GPU too)
 //! and prints the objects kept, the share of objects and triangles proved
 //! hidden, a lower bound of the visible set (objects hit by `--rays`
 //! random rays from the cell, 200,000 by default), the ratio of the two,
@@ -284,13 +285,20 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let shrink = match ShrinkOracle::new(&scene, ShrinkParams::default()) {
-        Ok(o) => o,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return ExitCode::FAILURE;
-        }
+    // The shrinking's cube maps on the GPU too with --gpu.
+    let shrink_rasteriser = if args.gpu {
+        Rasteriser::best()
+    } else {
+        Rasteriser::cpu()
     };
+    let shrink =
+        match ShrinkOracle::with_rasteriser(&scene, ShrinkParams::default(), shrink_rasteriser) {
+            Ok(o) => o,
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::FAILURE;
+            }
+        };
     let sliced = if args.slices > 0 {
         match SlicedScene::new(&scene, args.slices) {
             Ok(s) => Some(s),
