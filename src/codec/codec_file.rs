@@ -89,7 +89,8 @@ pub struct V5dFile {
     /// The tree (its root cell and grid bits are stored in the header).
     pub tree: VisTree,
     /// The slices of the tree's leaves (papers/004), when it has them
-    /// (version 4).
+    /// (version 4): cut into at most [`crate::slices::MAX_STORED_SLICES`]
+    /// slices an axis (an index is then 3 bytes), one leaf row per leaf.
     pub slices: Option<TreeSlices>,
 }
 

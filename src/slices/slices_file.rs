@@ -13,6 +13,11 @@ use crate::codec::{CodecError, VarintError, get_varint, put_varint};
 /// every index within its piece's slices, objects increasing in a leaf.
 pub(crate) fn encode(slices: &TreeSlices) -> Vec<u8> {
     let s = &slices.sliced;
+    debug_assert!(
+        s.slices <= MAX_STORED_SLICES,
+        "{} slices cannot be stored",
+        s.slices
+    );
     let mut out = vec![s.slices as u8];
     for (o, pieces) in s.objects.iter().enumerate() {
         put_varint(&mut out, pieces.len() as u32);
