@@ -346,13 +346,7 @@ impl GpuRasteriser {
                 .map(|&(n, _)| vec![f64::INFINITY; n * n])
                 .collect());
         }
-        self.check_health()?;
-        let scope = ErrorScopes::push(&self.device);
-        let result = self.draw_and_read(jobs, &work);
-        let scoped = scope.pop();
-        self.check_health()?;
-        scoped.map_err(GpuError::Gpu)?;
-        result
+        self.guarded(|| self.draw_and_read(jobs, &work))
     }
 
     /// The render passes of one map, checked against the device's limits;
@@ -421,6 +415,44 @@ impl GpuRasteriser {
         &self.queue
     }
 
+    /// Runs `work` on the device with its errors caught: the device's
+    /// health checked before and after, and wgpu's validation and memory
+    /// errors in an error scope around it.
+    pub(crate) fn guarded<T>(
+        &self,
+        work: impl FnOnce() -> Result<T, GpuError>,
+    ) -> Result<T, GpuError> {
+        self.check_health()?;
+        let scope = ErrorScopes::push(&self.device);
+        let result = work();
+        let scoped = scope.pop();
+        self.check_health()?;
+        scoped.map_err(GpuError::Gpu)?;
+        result
+    }
+
+    /// Maps `buffers` for reading, after the work submitted before, and
+    /// waits until every one is mapped.
+    pub(crate) fn map_for_reading(&self, buffers: &[&wgpu::Buffer]) -> Result<(), GpuError> {
+        let (sender, receiver) = mpsc::channel();
+        for buffer in buffers {
+            let sender = sender.clone();
+            buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+                let _ = sender.send(r);
+            });
+        }
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        for _ in buffers {
+            receiver
+                .recv()
+                .map_err(|_| GpuError::Readback("the mapping was never answered".into()))?
+                .map_err(|e| GpuError::Readback(e.to_string()))?;
+        }
+        Ok(())
+    }
+
     /// Reports a lost device or errors wgpu raised outside any scope.
     pub(crate) fn check_health(&self) -> Result<(), GpuError> {
         if let Some(reason) = self.lost.lock().unwrap_or_else(|p| p.into_inner()).clone() {
@@ -458,24 +490,8 @@ impl GpuRasteriser {
             .collect();
         self.queue.submit([encoder.finish()]);
 
-        let (sender, receiver) = mpsc::channel();
-        let mut waiting = 0;
-        for (buffer, _) in readbacks.iter().flatten() {
-            let sender = sender.clone();
-            buffer.map_async(wgpu::MapMode::Read, .., move |r| {
-                let _ = sender.send(r);
-            });
-            waiting += 1;
-        }
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
-        for _ in 0..waiting {
-            receiver
-                .recv()
-                .map_err(|_| GpuError::Readback("the mapping was never answered".into()))?
-                .map_err(|e| GpuError::Readback(e.to_string()))?;
-        }
+        let buffers: Vec<&wgpu::Buffer> = readbacks.iter().flatten().map(|(b, _)| b).collect();
+        self.map_for_reading(&buffers)?;
         let mut maps = Vec::with_capacity(jobs.len());
         for (&(n, _), readback) in jobs.iter().zip(&readbacks) {
             let Some((buffer, row_bytes)) = readback else {

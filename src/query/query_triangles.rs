@@ -18,7 +18,7 @@ use super::{Clipped, LEAF, Pvs, View, frustum_angles};
 use crate::bitset::ObjectSet;
 use crate::geom::Aabb;
 use crate::geom::cell::DIMS;
-use crate::slices::TreeSlices;
+use crate::slices::{SliceIndex, TreeSlices};
 
 /// One visible object's triangles to draw.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -130,17 +130,24 @@ impl Pvs {
             .iter()
             .filter(known)
             .map(|o| {
-                let holding: Vec<usize> = leaves
+                // Each holding leaf's indices for the object, looked up
+                // once; a leaf without any draws it whole.
+                let holding: Option<Vec<_>> = leaves
                     .iter()
                     .filter(|&&node| self.set_words(node)[o / 64] >> (o % 64) & 1 == 1)
-                    .map(|&node| self.leaf_rank[node] as usize)
+                    .map(|&node| slices.hidden(self.leaf_rank[node] as usize, o))
                     .collect();
-                if holding.is_empty() || holding.iter().any(|&l| slices.hidden(l, o).is_none()) {
+                let Some(holding) = holding.filter(|h| !h.is_empty()) else {
                     return whole(o);
-                }
+                };
                 let mut ranges: Vec<Range<u32>> = Vec::new();
                 for t in 0..self.objects[o].triangles {
-                    if holding.iter().any(|&l| !slices.culled(l, o, t as usize)) {
+                    let culled_in = |indices: &&[SliceIndex]| {
+                        slices
+                            .sliced
+                            .culled_by(o, t as usize, |p| indices.get(p).copied())
+                    };
+                    if !holding.iter().all(culled_in) {
                         match ranges.last_mut() {
                             Some(r) if r.end == t => r.end = t + 1,
                             _ => ranges.push(t..t + 1),

@@ -278,13 +278,7 @@ impl ShrinkGpu {
                 message: format!("a cube map needs a buffer of {biggest} bytes"),
             });
         }
-        gpu.check_health()?;
-        let scope = crate::oracle::ErrorScopes::push(device);
-        let result = self.run(gpu, eye, n, &upload);
-        let scoped = scope.pop();
-        gpu.check_health()?;
-        scoped.map_err(GpuError::Gpu)?;
-        result
+        gpu.guarded(|| self.run(gpu, eye, n, &upload))
     }
 
     fn run(
@@ -453,22 +447,7 @@ impl ShrinkGpu {
         }
         gpu.queue().submit([encoder.finish()]);
 
-        let (sender, receiver) = std::sync::mpsc::channel();
-        for readback in &readbacks {
-            let sender = sender.clone();
-            readback.map_async(wgpu::MapMode::Read, .., move |r| {
-                let _ = sender.send(r);
-            });
-        }
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
-        for _ in &readbacks {
-            receiver
-                .recv()
-                .map_err(|_| GpuError::Readback("the mapping was never answered".into()))?
-                .map_err(|e| GpuError::Readback(e.to_string()))?;
-        }
+        gpu.map_for_reading(&readbacks.iter().collect::<Vec<_>>())?;
         // Back to f64, the sentinels to infinities.
         let read = |readback: &wgpu::Buffer| -> Result<Vec<f64>, GpuError> {
             let values = {

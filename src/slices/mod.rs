@@ -82,10 +82,8 @@ impl TreeSlices {
     /// Whether object `object`'s triangle `t` is culled in leaf `leaf`.
     pub fn culled(&self, leaf: usize, object: usize, t: usize) -> bool {
         self.hidden(leaf, object).is_some_and(|indices| {
-            let (p, k) = self.sliced.place(object, t);
-            indices
-                .get(p)
-                .is_some_and(|&i| self.sliced.pieces(object)[p].culled(k, i))
+            self.sliced
+                .culled_by(object, t, |p| indices.get(p).copied())
         })
     }
 }
@@ -316,11 +314,19 @@ impl SlicedScene {
     /// Whether object `i`'s triangle `t` (in the object's order) is culled
     /// by `hidden`.
     pub fn culled(&self, i: usize, t: usize, hidden: &HiddenSlices) -> bool {
+        self.culled_by(i, t, |p| hidden.pieces.get(p).map(|&(index, _)| index))
+    }
+
+    /// Whether object `i`'s triangle `t` is culled by the index
+    /// `index_of(piece)` gives its piece (none: not culled).
+    pub fn culled_by(
+        &self,
+        i: usize,
+        t: usize,
+        index_of: impl Fn(usize) -> Option<SliceIndex>,
+    ) -> bool {
         let (p, k) = self.place(i, t);
-        hidden
-            .pieces
-            .get(p)
-            .is_some_and(|&(index, _)| self.objects[i][p].culled(k, index))
+        index_of(p).is_some_and(|index| self.objects[i][p].culled(k, index))
     }
 
     /// The number of object `i`'s triangles `hidden` culls.
