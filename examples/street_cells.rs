@@ -488,6 +488,14 @@ fn main() -> ExitCode {
             }
         );
         if args.list {
+            for o in seen.iter() {
+                let object = &scene.objects()[o];
+                let (a, b) = (object.bounds.min, object.bounds.max);
+                println!(
+                    "  seen: {} ({:.2}, {:.2}, {:.2})-({:.2}, {:.2}, {:.2})",
+                    object.name, a.x, a.y, a.z, b.x, b.y, b.z
+                );
+            }
             for o in report.visible.iter().filter(|&o| !seen.contains(o)) {
                 let object = &scene.objects()[o];
                 let (a, b) = (object.bounds.min, object.bounds.max);

@@ -110,9 +110,11 @@ pub struct OccluderCounts {
 /// lying in the plane, since a segment from outside to a point inside
 /// crosses the surface.
 ///
-/// Closed means every edge of the welded mesh has its twin. Extruded
+/// Closed means closed modulo two: every edge of the welded mesh is
+/// shared by an even number of triangles, whatever their winding (its
+/// inside is then where the even-odd rule says). Extruded
 /// footprints without a floor (common in city models) are accepted too,
-/// as *open at the bottom*: every edge without a twin lies in the plane
+/// as *open at the bottom*: every edge shared by an odd number lies in the plane
 /// `z = open_bottom`, the object's lowest; they count as closed by a
 /// virtual floor for viewpoints strictly above that plane (a segment
 /// between two points above it cannot reach the floor).
@@ -200,7 +202,7 @@ fn extract_object(triangles: &[[Vec3; 3]], object: u32, extracted: &mut Extracte
             }
         }
     }
-    if manifold && let Some(solid) = sliced_solid(&mesh, &edges, object) {
+    if let Some(solid) = sliced_solid(&mesh, object) {
         solids.push(solid);
     }
     let mut used = vec![false; mesh.triangles.len()];
@@ -238,8 +240,15 @@ fn extract_object(triangles: &[[Vec3; 3]], object: u32, extracted: &mut Extracte
 }
 
 /// The mesh as a solid to slice, if it is closed or open only at its
-/// bottom.
-fn sliced_solid(mesh: &Mesh, edges: &HashMap<(u32, u32), u32>, object: u32) -> Option<SlicedSolid> {
+/// bottom, *modulo two*: every edge (either direction) is shared by an
+/// even number of triangles, but for edges in the plane of its lowest
+/// point. Neither a consistent winding nor a manifold is needed (exports
+/// of BIM models flip some triangles of a wall, or give a window's frame
+/// and pane one shared edge): such a surface still bounds its inside by
+/// the even-odd rule, a segment from a point outside to a point inside
+/// crosses it an odd number of times, and both the cuts (closed loops,
+/// filled by the even-odd rule) and the shafts only use that.
+fn sliced_solid(mesh: &Mesh, object: u32) -> Option<SlicedSolid> {
     if mesh.triangles.is_empty() {
         return None;
     }
@@ -249,17 +258,30 @@ fn sliced_solid(mesh: &Mesh, edges: &HashMap<(u32, u32), u32>, object: u32) -> O
         .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), &p| {
             (a.min(p), b.max(p))
         });
-    let mut open_edges = Vec::new();
+    // Undirected edge -> how many triangles share it; in first-seen order
+    // so that the open edges come out the same on every run.
+    let mut count: HashMap<(u32, u32), (u32, usize)> = HashMap::new();
+    let mut order: Vec<(u32, u32)> = Vec::new();
     for t in &mesh.triangles {
         for k in 0..3 {
             let (a, b) = (t[k], t[(k + 1) % 3]);
-            if !edges.contains_key(&(b, a)) {
-                let (pa, pb) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
-                if pa.z != min.z || pb.z != min.z {
-                    return None;
-                }
-                open_edges.push([pa, pb]);
+            let key = (a.min(b), a.max(b));
+            let n = order.len();
+            let entry = count.entry(key).or_insert((0, n));
+            if entry.1 == n {
+                order.push((a, b));
             }
+            entry.0 += 1;
+        }
+    }
+    let mut open_edges = Vec::new();
+    for &(a, b) in &order {
+        if count[&(a.min(b), a.max(b))].0 % 2 == 1 {
+            let (pa, pb) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
+            if pa.z != min.z || pb.z != min.z {
+                return None;
+            }
+            open_edges.push([pa, pb]);
         }
     }
     let open_bottom = (!open_edges.is_empty()).then_some(min.z);
@@ -521,7 +543,8 @@ mod tests {
         // One object of two boxes: each is a closed convex component.
         assert_eq!(counts.solids, 2, "{counts:?}");
         assert_eq!(occ.len(), 2);
-        // Two boxes sharing an edge: not manifold, so no solids; faces.
+        // Two boxes sharing an edge: not manifold, so no convex solids;
+        // faces (and one solid to slice, closed mod 2).
         let mut b = Vec::new();
         push_box(&mut b, Vec3::ZERO, Vec3::ONE);
         push_box(&mut b, Vec3::new(-1.0, -1.0, 0.0), Vec3::new(0.0, 0.0, 1.0));
@@ -558,6 +581,40 @@ mod tests {
         push_box(&mut closed, Vec3::ZERO, Vec3::ONE);
         let solids = extract(&scene_of(vec![closed])).solids;
         assert_eq!((solids.len(), solids[0].open_bottom), (1, None));
+    }
+
+    #[test]
+    fn surfaces_closed_modulo_two_are_solids_to_slice_whatever_their_winding() {
+        // A box with two triangles wound the other way (as BIM exports
+        // give): not manifold, so no convex solid, but closed mod 2.
+        let mut flipped = Vec::new();
+        push_box(&mut flipped, Vec3::ZERO, Vec3::ONE);
+        flipped[0].swap(1, 2);
+        flipped[7].swap(1, 2);
+        let found = extract(&scene_of(vec![flipped]));
+        assert_eq!(found.counts.solids, 0);
+        assert_eq!(found.solids.len(), 1);
+        assert_eq!(found.solids[0].open_bottom, None);
+        // Two boxes sharing an edge (four triangles on it): one solid.
+        let mut b = Vec::new();
+        push_box(&mut b, Vec3::ZERO, Vec3::ONE);
+        push_box(&mut b, Vec3::new(-1.0, -1.0, 0.0), Vec3::new(0.0, 0.0, 1.0));
+        assert_eq!(extract(&scene_of(vec![b])).solids.len(), 1);
+        // Flipped and floorless: open at the bottom, each open edge once.
+        let mut floorless = Vec::new();
+        push_box(&mut floorless, Vec3::ZERO, Vec3::ONE);
+        let mut floorless = floorless.split_off(2);
+        floorless[3].swap(0, 1);
+        let solids = extract(&scene_of(vec![floorless])).solids;
+        assert_eq!(solids.len(), 1);
+        assert_eq!(solids[0].open_bottom, Some(0.0));
+        assert_eq!(solids[0].open_edges.len(), 4);
+        // An edge shared by three triangles off the floor: not closed.
+        let mut odd = Vec::new();
+        push_box(&mut odd, Vec3::ZERO, Vec3::ONE);
+        let [a, b, _] = odd[2];
+        odd.push([a, b, Vec3::new(0.5, 0.5, 3.0)]);
+        assert!(extract(&scene_of(vec![odd])).solids.is_empty());
     }
 
     #[test]

@@ -768,6 +768,41 @@ fn shafts_hide_the_rooms_across_the_corridor() {
     assert!(found.is_empty(), "{found:?}");
 }
 
+/// A room upstairs in the duplex (a BIM export): its party wall's mesh is
+/// closed but some triangles are wound the other way, so it is no convex
+/// solid and its faces (around a recess) leave a gap in every plane's
+/// umbra. Closed modulo two, it is sliced, and its cut hides the room
+/// beyond it; rays agree.
+#[test]
+fn a_wall_wound_both_ways_is_sliced_and_hides_the_room_beyond() {
+    let path = crate::shared_scenes().join("apartment_ifc_duplex/duplex_apartment.obj");
+    let scene = scene::load(&path).expect("the shared duplex loads");
+    let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    assert!(oracle.solid_count() >= 190, "{}", oracle.solid_count());
+    let cell = Aabb::new(Vec3::new(0.9, -15.1, 3.4), Vec3::new(3.9, -12.1, 5.4));
+    let report = oracle.cell(&cell, None);
+    let index = |prefix: &str| {
+        scene
+            .objects()
+            .iter()
+            .position(|o| o.name.starts_with(prefix))
+            .unwrap_or_else(|| panic!("the duplex has {prefix}"))
+    };
+    for beyond in [
+        "IfcWallStandardCase_33_",
+        "IfcFurnishingElement_66_",
+        "IfcDoor_74_",
+    ] {
+        assert!(!report.visible.contains(index(beyond)), "{beyond} kept");
+    }
+    assert!(report.visible.contains(index("IfcWall_22_")));
+    assert!(report.visible.count() <= 125, "{}", report.visible.count());
+    let tracer = Tracer::new(&scene);
+    let mut rng = Pcg64::seed_from_u64(30);
+    let found = violations(&oracle, &tracer, &cell, 200_000, &mut rng);
+    assert!(found.is_empty(), "{found:?}");
+}
+
 /// A review's counterexamples to the first shafts (stop 29): a triangle
 /// seen at a thousandth of a radian, a tiny object just behind it. The
 /// crossings lay inside the triangle by a millimetre, but the tracer's
