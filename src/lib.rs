@@ -49,7 +49,9 @@
 //! let mut visible = pvs.new_set(); // made once, reused every frame
 //! for frame in 0..3 {
 //!     let eye = Vec3::new(2.0 + 0.5 * frame as f32, 2.5, 1.6);
-//!     let view = View::square(eye, Vec3::new(1.0, 0.2, -0.1), 90.0);
+//!     // A camera as the engine holds it: eye, forward, up, vertical field
+//!     // of view, aspect (or View::from_view_projection(its matrix)).
+//!     let view = View::look(eye, Vec3::new(1.0, 0.2, -0.1), Vec3::Z, 1.0, 16.0 / 9.0);
 //!     pvs.query_view(&view, &mut visible); // no allocation
 //!     for object in visible.iter() {
 //!         let _name = &pvs.objects()[object].name; // draw(object)
@@ -61,10 +63,13 @@
 //! ```
 //!
 //! Positions are world coordinates for a scene modelled around the
-//! origin. A scene far from it (a model in UTM coordinates) is built in a
-//! local frame whose origin the file keeps ([`Pvs::frame`](query::Pvs::frame)):
-//! pass positions relative to that origin, or f64 world positions to
-//! [`query_view_world`](query::Pvs::query_view_world).
+//! origin, +z up. A scene far from it (a model in UTM coordinates) is
+//! built in a local frame whose origin the file keeps
+//! ([`Pvs::frame`](query::Pvs::frame)), and a scene built with another up
+//! axis (`vis5d build --up y`) in one whose z is its up: pass f64 world
+//! positions and world directions to
+//! [`query_view_world`](query::Pvs::query_view_world), which converts
+//! them, or local ones to `query_view`.
 //!
 //! ## Modules
 //!

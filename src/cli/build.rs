@@ -18,7 +18,7 @@ use vis5d::trace::Tracer;
 use vis5d::tree::TreeSummary;
 
 use crate::common::{
-    CodingSize, ShapeReport, World, WorldBox, check_output, coding_sizes, flag, load_scene,
+    CodingSize, ShapeReport, World, WorldBox, check_output, coding_sizes, flag, load_scene_up,
     parse_box, parse_pair, print_shape, progress_bar,
 };
 use crate::memory;
@@ -28,6 +28,12 @@ use crate::oracle::{GpuWarning, gpu_else_cpu};
 pub struct BuildArgs {
     /// The scene file (.obj, .gltf or .glb).
     file: PathBuf,
+    /// The scene's up axis in its file: x, y or z (glTF and most game
+    /// engines: y). Local z follows it: directions are parametrised by
+    /// their angle from it (phi) and about it (theta), floorless buildings
+    /// stand on it. The .v5d file stores it, and its queries take world coordinates.
+    #[arg(long, value_name = "AXIS", default_value = "z")]
+    up: vis5d::geom::Up,
     /// Where to write the tree [default: the model's path with the
     /// extension .v5d].
     #[arg(short, long, value_name = "FILE.v5d")]
@@ -285,6 +291,8 @@ struct BuildReport {
     view_box: [World; 2],
     #[serde(skip_serializing_if = "Option::is_none")]
     frame_origin: Option<[f64; 3]>,
+    /// The scene's up axis.
+    up: String,
     threads: usize,
     seed: u64,
     #[serde(flatten)]
@@ -428,7 +436,7 @@ pub fn run(args: &BuildArgs) -> Result<()> {
         "--cache-rays",
         "cache fewer rays or build shallower trees",
     )?;
-    let (scene, load_seconds) = load_scene(&args.file)?;
+    let (scene, load_seconds) = load_scene_up(&args.file, args.up)?;
     if let Some(local) = local_view_box(args, &scene)? {
         params.view_box = Some(local);
         params
@@ -587,6 +595,8 @@ struct BakeReport {
     view_box: [World; 2],
     #[serde(skip_serializing_if = "Option::is_none")]
     frame_origin: Option<[f64; 3]>,
+    /// The scene's up axis.
+    up: String,
     threads: usize,
     rasteriser: String,
     triangle_budget: u64,
@@ -631,7 +641,7 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
     };
     params.validate().map_err(bake_flag)?;
     let output = checked_output(args)?;
-    let (scene, load_seconds) = load_scene(&args.file)?;
+    let (scene, load_seconds) = load_scene_up(&args.file, args.up)?;
     if let Some(local) = local_view_box(args, &scene)? {
         params.view_box = Some(local);
         params
@@ -701,7 +711,8 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
         objects: scene.objects().len(),
         triangles: scene.triangles().len(),
         view_box: [World(frame, b.min), World(frame, b.max)],
-        frame_origin: (!frame.is_identity()).then(|| frame.origin.to_array()),
+        frame_origin: (!frame.at_world_origin()).then(|| frame.origin.to_array()),
+        up: frame.up.to_string(),
         threads: rayon::current_num_threads(),
         rasteriser: oracle.rasteriser().name(),
         triangle_budget: params.budget(&scene),
@@ -797,7 +808,8 @@ fn build_report(
         objects: scene.objects().len(),
         triangles: scene.triangles().len(),
         view_box: [World(frame, b.min), World(frame, b.max)],
-        frame_origin: (!frame.is_identity()).then(|| frame.origin.to_array()),
+        frame_origin: (!frame.at_world_origin()).then(|| frame.origin.to_array()),
+        up: frame.up.to_string(),
         threads,
         seed: params.seed,
         tree: s.into(),

@@ -11,7 +11,7 @@ use vis5d::geom::Aabb;
 use vis5d::oracle::{self, CheckParams, LeafCheck, Oracle, Suspect};
 use vis5d::trace::Tracer;
 
-use crate::common::{World, load_scene, progress_bar, read_v5d};
+use crate::common::{World, load_scene_up, progress_bar, read_v5d};
 use crate::memory;
 use crate::oracle::{GpuWarning, OracleFlags};
 
@@ -123,16 +123,17 @@ pub fn run(args: &CheckArgs) -> Result<Outcome> {
         "--truth-rays and --burst",
         "cast fewer rays per leaf",
     )?;
-    let (scene, _) = load_scene(&args.model)?;
-    let frame = scene.frame();
     let (_, file) = read_v5d(&args.pvs)?;
+    let (scene, _) = load_scene_up(&args.model, file.frame.up)?;
+    let frame = scene.frame();
     if file.fingerprint != scene.fingerprint() {
         anyhow::bail!(
-            "{} was built for another scene than {} (geometry fingerprint {:016x}, the scene's is {:016x}); rebuild it",
+            "{} was built for another scene than {} (geometry fingerprint {:016x}, the scene's is {:016x}){}; rebuild it",
             args.pvs.display(),
             args.model.display(),
             file.fingerprint,
-            scene.fingerprint()
+            scene.fingerprint(),
+            crate::common::up_hint(file.frame.up, scene.frame().up)
         );
     }
     let tracer = Tracer::new(&scene);
@@ -172,7 +173,7 @@ pub fn run(args: &CheckArgs) -> Result<Outcome> {
     let suspects: Vec<&Suspect> = report.leaves.iter().flat_map(|l| &l.suspects).collect();
     let json = CheckJson {
         model: args.model.display().to_string(),
-        frame_origin: (!frame.is_identity()).then(|| frame.origin.to_array()),
+        frame_origin: (!frame.at_world_origin()).then(|| frame.origin.to_array()),
         pvs: args.pvs.display().to_string(),
         objects: scene.objects().len(),
         tree_leaves: report.tree_leaves,

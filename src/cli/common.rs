@@ -155,8 +155,14 @@ pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
     Ok(v)
 }
 
-/// Loads a scene with a progress bar on a terminal.
+/// Loads a scene (+z up) with a progress bar on a terminal.
 pub fn load_scene(path: &Path) -> Result<(Scene, f64)> {
+    load_scene_up(path, vis5d::geom::Up::Z)
+}
+
+/// Loads a scene whose up axis is `up` ([`vis5d::scene::Scene::with_up`]),
+/// with a progress bar on a terminal.
+pub fn load_scene_up(path: &Path, up: vis5d::geom::Up) -> Result<(Scene, f64)> {
     let bar = if io::stderr().is_terminal() {
         let bar = ProgressBar::new(0).with_style(
             ProgressStyle::with_template("loading {msg} [{bar:30}] {bytes}/{total_bytes} {eta}")
@@ -178,13 +184,29 @@ pub fn load_scene(path: &Path) -> Result<(Scene, f64)> {
             "load a smaller scene, or give the run more memory",
         )?;
     }
-    let options = LOAD_OPTIONS.get_or_init(LoadOptions::default);
-    let result = scene::load_with(path, options, &mut |done, total| {
+    let options = LoadOptions {
+        up,
+        ..LOAD_OPTIONS.get_or_init(LoadOptions::default).clone()
+    };
+    let result = scene::load_with(path, &options, &mut |done, total| {
         bar.set_length(total);
         bar.set_position(done);
     });
     bar.finish_and_clear();
     Ok((result?, start.elapsed().as_secs_f64()))
+}
+
+/// What to add to a "built for another scene" error when the file was
+/// built with another up axis than the scene was loaded with (else
+/// nothing).
+pub fn up_hint(file: vis5d::geom::Up, scene: vis5d::geom::Up) -> String {
+    if file == scene {
+        String::new()
+    } else {
+        format!(
+            " (the file was built with --up {file}, the scene loaded with --up {scene}: pass --up {file})"
+        )
+    }
 }
 
 /// Reads and decodes a `.v5d` file (a regular file, within the decoder's
@@ -214,18 +236,39 @@ pub fn set_load_options(options: LoadOptions) {
     let _ = LOAD_OPTIONS.set(options);
 }
 
-/// One view of `query --views`.
+/// One view of a views file (`query --views`, `report --views`).
 #[derive(serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ViewSpec {
     pos: [f64; 3],
     dir: [f32; 3],
-    #[serde(default = "default_fov")]
-    fov: f32,
+    /// Square field of view, degrees.
+    fov: Option<f32>,
+    /// Up direction.
+    up: Option<[f32; 3]>,
+    /// Vertical field of view, degrees (with `aspect`).
+    vfov: Option<f32>,
+    /// Width over height (with `vfov`).
+    aspect: Option<f32>,
 }
 
-fn default_fov() -> f32 {
-    90.0
+/// What a view that does not say takes: the square field of view and the
+/// up direction of `query`'s `--fov` and `--up`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ViewDefaults {
+    /// Square field of view, degrees.
+    pub fov: f32,
+    /// The up direction (world); `None`: the tree's up axis.
+    pub up: Option<Vec3>,
+}
+
+impl Default for ViewDefaults {
+    fn default() -> Self {
+        Self {
+            fov: 90.0,
+            up: None,
+        }
+    }
 }
 
 /// A view whose eye is in world coordinates (f64, as read), to be put in
@@ -234,27 +277,33 @@ fn default_fov() -> f32 {
 pub struct WorldView {
     /// The eye, world coordinates.
     pub position: DVec3,
-    /// The rest of the view (its `position` is the eye in f32, for
-    /// nothing but messages).
+    /// The rest of the view, its directions in world axes (its `position`
+    /// is the eye in f32, for nothing but messages).
     pub view: View,
+    /// Whether the view's up was given; else it is the frame's up axis
+    /// (the next axis when looking straight along it).
+    pub up_given: bool,
 }
 
 impl WorldView {
-    /// A square view from `position` (see [`View::square`]).
+    /// A square view from `position` (see [`View::square`]), its up the
+    /// frame's.
     pub fn square(position: DVec3, dir: Vec3, fov_degrees: f32) -> Self {
         Self {
             position,
             view: View::square(position.as_vec3(), dir, fov_degrees),
+            up_given: false,
         }
     }
 
     /// The view in `frame`'s local coordinates (the eye at the nearest
-    /// local point).
+    /// local point, the directions turned).
     pub fn local(&self, frame: &Frame) -> View {
-        View {
-            position: frame.to_local(self.position),
-            ..self.view
+        let mut view = self.view;
+        if !self.up_given {
+            view.up = default_up(frame.up, view.dir);
         }
+        view.to_local(frame, self.position)
     }
 
     /// The box of eye positions (the eye and its radius) in `frame`'s
@@ -265,37 +314,81 @@ impl WorldView {
     }
 }
 
-/// Reads a views file: a JSON list of `{"pos": [x,y,z], "dir": [x,y,z],
-/// "fov": degrees}` (square field of view, up = +z unless `dir` is
-/// vertical), positions in world coordinates.
-pub fn read_views(path: &Path) -> Result<Vec<WorldView>> {
+/// The world up direction of a view along `dir` that does not say: the
+/// `up` axis, or the axis after it when `dir` is (nearly) along it.
+pub fn default_up(up: vis5d::geom::Up, dir: Vec3) -> Vec3 {
+    let u = up.world_vector();
+    if dir.normalize_or_zero().dot(u).abs() > 0.999 {
+        let mut v = Vec3::ZERO;
+        v[up.world_axis(1)] = 1.0;
+        v
+    } else {
+        u
+    }
+}
+
+/// The help's description of a views file.
+pub const VIEWS_HELP: &str = "a JSON list of {\"pos\": [x,y,z], \"dir\": [x,y,z]} with, optionally, \"fov\": degrees (square) or \"vfov\": degrees and \"aspect\": width/height, and \"up\": [x,y,z]";
+
+/// Reads a views file: a JSON list of `{"pos": [x,y,z], "dir": [x,y,z]}`,
+/// each optionally with `"fov"` (a square field of view, degrees) or
+/// `"vfov"` (vertical, degrees) and `"aspect"` (width over height), and
+/// `"up"`; positions and directions in world coordinates. A view without
+/// a field of view or an up direction takes `defaults`'.
+pub fn read_views(path: &Path, defaults: ViewDefaults) -> Result<Vec<WorldView>> {
     let bytes = vis5d::input::read_regular(path, MAX_VIEWS_BYTES)
         .with_context(|| format!("{}: cannot read the views", path.display()))?;
     let text = String::from_utf8(bytes)
         .with_context(|| format!("{}: the views are not UTF-8 text", path.display()))?;
-    let specs: Vec<ViewSpec> = serde_json::from_str(&text).with_context(|| {
-        format!(
-            "{}: expected a JSON list of {{\"pos\": [x,y,z], \"dir\": [x,y,z], \"fov\": degrees}}",
-            path.display()
-        )
-    })?;
+    let specs: Vec<ViewSpec> = serde_json::from_str(&text)
+        .with_context(|| format!("{}: expected {VIEWS_HELP}", path.display()))?;
     specs
         .iter()
         .enumerate()
         .map(|(i, v)| {
+            let bad = |what: &str| anyhow::anyhow!("{}: view {i}: {what}", path.display());
             let (pos, dir) = (DVec3::from_array(v.pos), Vec3::from_array(v.dir));
-            let ok = pos.is_finite()
-                && dir.is_finite()
-                && dir != Vec3::ZERO
-                && v.fov > 0.0
-                && v.fov < 180.0;
-            if !ok {
-                bail!(
-                    "{}: view {i} needs finite pos, a non-zero dir and 0 < fov < 180",
-                    path.display()
-                );
+            if !(pos.is_finite() && dir.is_finite() && dir != Vec3::ZERO) {
+                return Err(bad("needs a finite pos and a finite, non-zero dir"));
             }
-            Ok(WorldView::square(pos, dir, v.fov))
+            let angle = |name: &str, a: f32| {
+                if a > 0.0 && a < 180.0 {
+                    Ok(a)
+                } else {
+                    Err(bad(&format!("{name} must be above 0 and below 180 degrees")))
+                }
+            };
+            let mut view = match (v.fov, v.vfov, v.aspect) {
+                (Some(_), Some(_), _) => return Err(bad("give fov (square) or vfov, not both")),
+                (_, None, Some(_)) => return Err(bad("aspect needs vfov")),
+                (fov, None, None) => {
+                    WorldView::square(pos, dir, angle("fov", fov.unwrap_or(defaults.fov))?)
+                }
+                (None, Some(vfov), aspect) => {
+                    let vfov = angle("vfov", vfov)?.to_radians();
+                    let aspect = aspect.unwrap_or(1.0);
+                    if !(aspect.is_finite() && aspect > 0.0) {
+                        return Err(bad("aspect must be finite and above 0"));
+                    }
+                    let view = View::look(pos.as_vec3(), dir, Vec3::Z, vfov, aspect);
+                    if view.fov_x.is_nan() || view.fov_x >= std::f32::consts::PI {
+                        return Err(bad("vfov and aspect make a horizontal field of view of 180 degrees or more"));
+                    }
+                    WorldView {
+                        position: pos,
+                        view,
+                        up_given: false,
+                    }
+                }
+            };
+            if let Some(up) = v.up.map(Vec3::from_array).or(defaults.up) {
+                if !(up.is_finite() && up.cross(dir).length() > 1e-3 * up.length() * dir.length()) {
+                    return Err(bad("up must be finite and not along dir"));
+                }
+                view.view.up = up;
+                view.up_given = true;
+            }
+            Ok(view)
         })
         .collect()
 }

@@ -71,7 +71,7 @@ pub fn run(args: &InfoArgs) -> Result<()> {
         objects: scene.objects().len(),
         triangles: scene.triangles().len(),
         bounds: [World(frame, b.min), World(frame, b.max)],
-        frame_origin: (!frame.is_identity()).then(|| frame.origin.to_array()),
+        frame_origin: (!frame.at_world_origin()).then(|| frame.origin.to_array()),
         size: b.size().to_array(),
         surface_area: scene.objects().iter().map(|o| o.area).sum(),
         load_seconds: seconds,

@@ -101,8 +101,9 @@ enum Command {
     ///
     /// Prints the names of the potentially visible objects. `--views FILE`
     /// answers many views at once: a JSON list of {"pos": [x,y,z], "dir":
-    /// [x,y,z], "fov": degrees} (square field of view, up = +z unless the
-    /// direction is vertical).
+    /// [x,y,z]}, each optionally with "fov" (square, degrees) or "vfov"
+    /// (degrees) and "aspect", and "up": [x,y,z] (default: the up axis the
+    /// tree was built with).
     Query(query::QueryArgs),
     /// Run a conservative oracle for one view cell: extended projections
     /// (papers/001, the default) or occluder shrinking (papers/004).

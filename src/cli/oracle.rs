@@ -12,7 +12,7 @@ use serde::Serialize;
 use vis5d::oracle::{CellReport, Oracle, OracleError, OracleParams, Rasteriser};
 use vis5d::shrink::{ShrinkError, ShrinkOracle, ShrinkParams};
 
-use crate::common::{WorldBox, flag, load_scene, parse_box, printable};
+use crate::common::{WorldBox, flag, load_scene_up, parse_box, printable};
 
 /// Settings shared by `oracle` and `check`.
 #[derive(Args, Debug, Clone)]
@@ -144,6 +144,12 @@ impl GpuWarning {
 pub struct OracleArgs {
     /// The scene file (.obj, .gltf or .glb).
     file: PathBuf,
+    /// The scene's up axis in its file: x, y or z (glTF and most game
+    /// engines: y). Local z follows it: directions are parametrised by
+    /// their angle from it (phi) and about it (theta), floorless buildings
+    /// stand on it. Cells and printed points stay in world coordinates.
+    #[arg(long, value_name = "AXIS", default_value = "z")]
+    up: vis5d::geom::Up,
     /// The view cell: a box of viewpoints, x0,y0,z0,x1,y1,z1 (world
     /// coordinates).
     #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box, allow_hyphen_values = true)]
@@ -373,7 +379,7 @@ pub fn run(args: &OracleArgs) -> Result<()> {
         return run_shrink(args);
     }
     let params = args.flags.params()?;
-    let (scene, load) = load_scene(&args.file)?;
+    let (scene, load) = load_scene_up(&args.file, args.up)?;
     let rasteriser = args.flags.rasteriser();
     let start = Instant::now();
     let oracle = Oracle::new(&scene, params, rasteriser)?;
@@ -558,7 +564,7 @@ fn run_shrink(args: &OracleArgs) -> Result<()> {
     params.validate().map_err(|e| match &e {
         ShrinkError::Parameter { name, .. } => anyhow!("{}: {e}", flag(name)),
     })?;
-    let (scene, load) = load_scene(&args.file)?;
+    let (scene, load) = load_scene_up(&args.file, args.up)?;
     let rasteriser = args.flags.rasteriser();
     let start = Instant::now();
     let oracle = ShrinkOracle::with_rasteriser(&scene, params, rasteriser)?;

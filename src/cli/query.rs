@@ -9,7 +9,8 @@ use glam::{DVec3, Vec3};
 use vis5d::query::Pvs;
 
 use crate::common::{
-    WorldBox, WorldView, load_scene, parse_box, parse_point, parse_vec3, printable, read_views,
+    ViewDefaults, WorldBox, WorldView, load_scene_up, parse_box, parse_point, parse_vec3,
+    printable, read_views,
 };
 
 #[derive(Args, Debug)]
@@ -26,15 +27,21 @@ pub struct QueryArgs {
     /// The viewing direction, x,y,z.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true, required_unless_present = "views")]
     dir: Option<Vec3>,
-    /// The up direction [default: +z, or +y when looking straight up or
-    /// down].
+    /// The up direction, world coordinates [default: the up axis the
+    /// tree was built with (`build --up`), or the axis after it when
+    /// looking straight along it]; with --views, for the views that do not
+    /// give theirs.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     up: Option<Vec3>,
     /// The field of view in degrees, horizontal and vertical [above 0,
-    /// below 180].
-    #[arg(long, default_value_t = 90.0, allow_hyphen_values = true)]
-    fov: f32,
-    /// Answer every view of this JSON file instead.
+    /// below 180; default 90]; with --views, for the views that do not
+    /// give theirs.
+    #[arg(long, allow_hyphen_values = true)]
+    fov: Option<f32>,
+    /// Answer every view of this JSON file instead: a list of {"pos":
+    /// [x,y,z], "dir": [x,y,z]}, each optionally with "fov" (square,
+    /// degrees) or "vfov" (vertical, degrees) and "aspect" (width over
+    /// height), and "up": [x,y,z]; world coordinates.
     #[arg(long, value_name = "VIEWS.json", conflicts_with_all = ["pos", "box", "dir"])]
     views: Option<PathBuf>,
     /// The scene the file should have been built for: refuse the file if
@@ -65,38 +72,53 @@ struct TrianglesJson<'a> {
 pub fn run(args: &QueryArgs) -> Result<()> {
     // The views first (flags and file): bad ones are refused before the
     // tree is read.
+    let fov = args.fov.unwrap_or(90.0);
+    if !(fov > 0.0 && fov < 180.0) {
+        bail!("--fov must be between 0 and 180 degrees");
+    }
+    if let Some(up) = args.up
+        && !(up.is_finite() && up != Vec3::ZERO)
+    {
+        bail!("--up must be finite and not the zero vector");
+    }
+    let defaults = ViewDefaults { fov, up: args.up };
     let views: Vec<WorldView> = match &args.views {
-        Some(path) => read_views(path)?,
+        Some(path) => read_views(path, defaults)?,
         None => {
             let dir = args.dir.expect("clap requires --dir without --views");
             if dir == Vec3::ZERO {
                 bail!("--dir must not be the zero vector");
-            }
-            if !(args.fov > 0.0 && args.fov < 180.0) {
-                bail!("--fov must be between 0 and 180 degrees");
             }
             let pos = match (args.pos, args.positions) {
                 (_, Some(b)) => b.center(),
                 (Some(p), None) => p,
                 (None, None) => unreachable!("clap requires --pos or --box"),
             };
-            let mut v = WorldView::square(pos, dir, args.fov);
+            let mut v = WorldView::square(pos, dir, fov);
             if let Some(up) = args.up {
+                if up.cross(dir).length() <= 1e-3 * up.length() * dir.length() {
+                    bail!("--up must not be along --dir");
+                }
                 v.view.up = up;
+                v.up_given = true;
             }
             vec![v]
         }
     };
     let pvs = Pvs::load(&args.file)?;
     if let Some(model) = &args.scene {
-        let (scene, _) = load_scene(model)?;
-        pvs.check_fingerprint(scene.fingerprint())
-            .map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
+        let (scene, _) = load_scene_up(model, pvs.frame().up)?;
+        pvs.check_fingerprint(scene.fingerprint()).map_err(|e| {
+            anyhow::anyhow!(
+                "{}: {e}{}",
+                args.file.display(),
+                crate::common::up_hint(pvs.frame().up, scene.frame().up)
+            )
+        })?;
     }
     // Each answer is printed as it comes (a long camera path is never
     // held whole).
     let mut set = pvs.new_set();
-    let mut acc = pvs.new_set();
     let mut out = io::BufWriter::new(io::stdout().lock());
     let many = args.views.is_some();
     if args.json && many {
@@ -109,15 +131,10 @@ pub fn run(args: &QueryArgs) -> Result<()> {
             Some(b) => b.to_local(&frame),
             None => v.positions(&frame),
         };
-        let v = &v.view;
-        let r = vis5d::query::frustum_angles(v.dir, v.up, v.fov_x, v.fov_y);
-        acc.clear();
-        for &(t0, t1, p0, p1) in r.boxes() {
-            pvs.query_range(&positions, (t0, t1), (p0, p1), &mut set);
-            acc.union_with(&set);
-        }
-        std::mem::swap(&mut set, &mut acc);
+        let v = v.local(&frame);
+        pvs.query_view_from(&positions, &v, &mut set);
         if args.triangles {
+            let r = vis5d::query::frustum_angles(v.dir, v.up, v.fov_x, v.fov_y);
             let drawn = pvs.triangles_of(&positions, r.boxes(), &set);
             let rows: Vec<TrianglesJson> = drawn
                 .iter()

@@ -19,7 +19,9 @@ use vis5d::report::{self, ReportError, ReportParams};
 use vis5d::shrink::{ShrinkOracle, ShrinkParams};
 use vis5d::trace::Tracer;
 
-use crate::common::{check_output, flag, load_scene, progress_bar, read_v5d, read_views};
+use crate::common::{
+    ViewDefaults, check_output, flag, load_scene_up, progress_bar, read_v5d, read_views,
+};
 use crate::memory;
 use crate::oracle::GpuWarning;
 use crate::report_page::{self, Page, TreeSource, share};
@@ -28,6 +30,12 @@ use crate::report_page::{self, Page, TreeSource, share};
 pub struct ReportArgs {
     /// The scene file (.obj, .gltf or .glb).
     file: PathBuf,
+    /// The scene's up axis in its file: x, y or z (glTF and most game
+    /// engines: y). Local z follows it: directions are parametrised by
+    /// their angle from it (phi) and about it (theta), floorless buildings
+    /// stand on it. Trees given with --pvs and --conservative must have been built with the same.
+    #[arg(long, value_name = "AXIS", default_value = "z")]
+    up: vis5d::geom::Up,
     /// The folder to write index.html, report.json and report.md into
     /// (created if missing).
     #[arg(short, long, value_name = "DIR")]
@@ -124,9 +132,10 @@ fn read_tree_for(
     let (_, file) = read_v5d(path)?;
     if file.fingerprint != scene.fingerprint() {
         bail!(
-            "{} was built for another scene than {} (geometry fingerprint differs); rebuild it",
+            "{} was built for another scene than {} (geometry fingerprint differs){}; rebuild it",
             path.display(),
-            args.file.display()
+            args.file.display(),
+            crate::common::up_hint(file.frame.up, scene.frame().up)
         );
     }
     Ok(file)
@@ -153,8 +162,12 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         }
     }
     // A camera path is read (and checked) before the work.
-    let path_views = args.views.as_deref().map(read_views).transpose()?;
-    let (scene, _) = load_scene(&args.file)?;
+    let path_views = args
+        .views
+        .as_deref()
+        .map(|p| read_views(p, ViewDefaults::default()))
+        .transpose()?;
+    let (scene, _) = load_scene_up(&args.file, args.up)?;
     let tracer = Tracer::new(&scene);
     // The tree: given or built.
     let (file, tree) = match &args.pvs {

@@ -38,6 +38,8 @@ struct StatReport {
     /// In the tree's local coordinates: world = local + `frame_origin`.
     root_cell: [[f32; 5]; 2],
     frame_origin: [f64; 3],
+    /// The scene's up axis (local z), "x", "y" or "z".
+    up: String,
     params: Vec<(String, String)>,
     #[serde(flatten)]
     tree: ShapeReport,
@@ -152,6 +154,7 @@ pub fn run(args: &StatArgs) -> Result<()> {
         },
         root_cell: [root.lo, root.hi],
         frame_origin: file.frame.origin.to_array(),
+        up: file.frame.up.to_string(),
         params: file
             .params
             .lines()
@@ -191,6 +194,11 @@ pub fn run(args: &StatArgs) -> Result<()> {
     )?;
     writeln!(out, "  objects          {}", r.objects)?;
     writeln!(out, "  scene            fingerprint {}", r.fingerprint)?;
+    writeln!(
+        out,
+        "  up axis          {} (directions' angles: phi from it, theta about it)",
+        r.up
+    )?;
     let space = [
         World(file.frame, Vec3::new(root.lo[0], root.lo[1], root.lo[2])),
         World(file.frame, Vec3::new(root.hi[0], root.hi[1], root.hi[2])),

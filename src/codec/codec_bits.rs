@@ -248,8 +248,8 @@ mod tests {
         bytes.extend_from_slice(&crate::codec::crc32(&bytes).to_le_bytes());
         let file = crate::codec::read_file(&bytes, crate::codec::ReadLimits::default())
             .expect("ok_decodes.bin decodes");
-        // It is a version 1 file: written again it is version 4 (a frame
-        // origin, a bounds grid, unknown bounds per object, no leaf
+        // It is a version 1 file: written again it is the version written
+        // (a frame origin and up axis, a bounds grid, unknown bounds per object, no leaf
         // records and no slices: two zero lengths after the tree), its
         // tree's bit stream unchanged, and written once more the same
         // bytes.

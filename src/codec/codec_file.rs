@@ -14,7 +14,7 @@ use super::CodecError;
 use super::codec_bounds::BoundsGrid;
 use super::codec_tree::{Coding, DecodeLimits, decode, encode};
 use crate::geom::cell::{Cell, DIMS};
-use crate::geom::{Aabb, Frame};
+use crate::geom::{Aabb, Frame, Up};
 use crate::slices::TreeSlices;
 use crate::tree::{LeafRecord, VisTree};
 
@@ -23,17 +23,22 @@ use crate::tree::{LeafRecord, VisTree};
 /// transfers).
 pub const MAGIC: [u8; 8] = [0x89, b'V', b'5', b'D', b'\r', b'\n', 0x1a, b'\n'];
 
-/// The format version this code writes. It reads this one, version 3 (no
-/// slices), version 2 (no leaf records either) and version 1 (which has
-/// no frame origin either: its trees are in world coordinates).
-pub const VERSION: u16 = 4;
+/// The format version this code writes. It reads this one, version 4 (no
+/// up axis: +z), version 3 (no slices either), version 2 (no leaf records
+/// either) and version 1 (which has no frame origin either: its trees are
+/// in world coordinates).
+pub const VERSION: u16 = 5;
 
 /// The size of the fixed header of a file of `version`, before the
 /// parameters: version 2 added the frame origin (three f64) and the grid
-/// of the object bounds (six f32).
+/// of the object bounds (six f32), version 5 the up axis (one byte).
 const fn fixed_len(version: u16) -> usize {
     let v1 = 8 + 2 + 1 + 1 + 4 + 4 + 4 + 8 + 4 * 2 * DIMS + 4;
-    if version >= 2 { v1 + 3 * 8 + 6 * 4 } else { v1 }
+    match version {
+        5.. => v1 + 3 * 8 + 1 + 6 * 4,
+        2..=4 => v1 + 3 * 8 + 6 * 4,
+        _ => v1,
+    }
 }
 
 /// The fewest bytes an object's entry takes in a file of `version`: its
@@ -118,9 +123,10 @@ impl Default for ReadLimits {
 
 /// The 64-bit FNV-1a hash of a scene's geometry: the number of objects,
 /// each object's triangle count and the bits of every (local) coordinate,
-/// in order, then the frame's origin when it is not zero (so a scene near
-/// the origin hashes as it did before frames existed). Names are not
-/// included: renaming an object does not change what is visible.
+/// in order, then the frame's origin when it is not zero and its up axis
+/// when it is not z (so a scene near the origin, +z up, hashes as it did
+/// before frames existed). Names are not included: renaming an object does
+/// not change what is visible.
 pub fn geometry_fingerprint<'a>(
     objects: impl IntoIterator<Item = &'a [[Vec3; 3]]>,
     frame: &Frame,
@@ -147,11 +153,15 @@ pub fn geometry_fingerprint<'a>(
         }
     }
     eat(&count.to_le_bytes());
-    if !frame.is_identity() {
+    if !frame.at_world_origin() {
         eat(b"origin");
         for c in frame.origin.to_array() {
             eat(&c.to_bits().to_le_bytes());
         }
+    }
+    if frame.up != Up::Z {
+        eat(b"up");
+        eat(&[frame.up.axis() as u8]);
     }
     h
 }
@@ -204,6 +214,7 @@ pub fn write_file(file: &V5dFile) -> Vec<u8> {
     for c in file.frame.origin.to_array() {
         out.extend_from_slice(&c.to_le_bytes());
     }
+    out.push(file.frame.up.axis() as u8);
     let grid = BoundsGrid::over(file.objects.iter().filter_map(|o| o.bounds.as_ref()));
     for v in grid
         .space
@@ -470,7 +481,15 @@ fn parse_body(body: &[u8], version: u16, limits: ReadLimits) -> Result<V5dFile, 
                 "the frame origin {origin} is not finite"
             )));
         }
-        Frame { origin }
+        let up = if version >= 5 {
+            let byte = c.u8("the up axis")?;
+            Up::from_axis(byte as usize).ok_or_else(|| {
+                CodecError::Corrupt(format!("up axis {byte} is not 0 (x), 1 (y) or 2 (z)"))
+            })?
+        } else {
+            Up::Z
+        };
+        Frame { origin, up }
     } else {
         Frame::IDENTITY
     };
@@ -686,7 +705,19 @@ mod tests {
         // The same local triangles elsewhere in the world.
         let far = Frame {
             origin: DVec3::new(1e6, 0.0, 0.0),
+            up: Up::Z,
         };
         assert_ne!(geometry_fingerprint([&a[..]], &far), f(&[&a]));
+        // The same local triangles built with another up axis.
+        let y = Frame {
+            origin: DVec3::ZERO,
+            up: Up::Y,
+        };
+        let fy = geometry_fingerprint([&a[..]], &y);
+        assert_ne!(fy, f(&[&a]));
+        assert_ne!(
+            fy,
+            geometry_fingerprint([&a[..]], &Frame { up: Up::X, ..y })
+        );
     }
 }

@@ -19,4 +19,4 @@ pub use aabb::Aabb;
 #[cfg(feature = "builder")]
 pub use box_tree::{BoxNode, BoxTree};
 pub use cell::Cell;
-pub use frame::Frame;
+pub use frame::{Frame, Up};

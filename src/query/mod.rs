@@ -29,11 +29,23 @@
 //! renderer drawing such a scene in f32 holds anyway), and
 //! [`Pvs::query_view_world`] and [`Pvs::query_range_world`] take f64 world
 //! positions and convert them, rounding the box of positions outwards.
+//!
+//! The frame also turns the axes when the tree was built for a scene whose
+//! up axis is not +z (`vis5d build --up y`): local z is the scene's up.
+//! The `_world` queries take world directions too and turn them; the
+//! others take directions, like positions, in the tree's frame
+//! ([`Frame::dir_to_local`]), and angle ranges are always about local z
+//! (phi from the up axis).
+//!
+//! Views: [`View::look`] (eye, forward, up, vertical field of view and
+//! aspect ratio, as engines give cameras), [`View::from_view_projection`]
+//! (the matrix an engine draws with: OpenGL, Vulkan or Direct3D depth,
+//! right- or left-handed) or [`View::square`].
 
 use std::f32::consts::PI;
 use std::path::{Path, PathBuf};
 
-use glam::{DVec3, Vec3};
+use glam::{DMat3, DVec3, DVec4, Mat4, Vec3};
 
 use crate::bitset::ObjectSet;
 use crate::codec::{CodecError, Coding, FileObject, ReadLimits, read_file};
@@ -114,8 +126,120 @@ pub struct View {
 }
 
 impl View {
+    /// A camera as engines give it: from `eye` looking along `forward`,
+    /// `up` its up direction (need not be orthogonal to `forward`),
+    /// `vfov` its vertical field of view in radians and `aspect` its
+    /// width over its height (the horizontal field of view is `2
+    /// atan(aspect tan(vfov / 2))`).
+    pub fn look(eye: Vec3, forward: Vec3, up: Vec3, vfov: f32, aspect: f32) -> Self {
+        let half = (0.5 * f64::from(vfov)).tan();
+        Self {
+            position: eye,
+            radius: 0.0,
+            dir: forward,
+            up,
+            fov_x: (2.0 * (f64::from(aspect) * half).atan()) as f32,
+            fov_y: vfov,
+        }
+    }
+
+    /// The view a perspective view-projection matrix draws (`clip = m *
+    /// world`, column vectors, glam's column-major [`Mat4`]): any depth
+    /// convention (OpenGL's -1..1, Vulkan's and Direct3D's 0..1, reversed
+    /// or infinite), right- or left-handed, y up or down, and off-centre
+    /// projections (VR, jittered): the smallest symmetric frustum around
+    /// the eye that holds the four edge rays of the matrix's (whatever its
+    /// near and far planes: objects beyond the far plane are kept).
+    /// `None` for a matrix that is not a perspective projection (no eye,
+    /// an orthographic one, not finite) or whose frustum no symmetric one
+    /// under 180 degrees holds.
+    pub fn from_view_projection(m: Mat4) -> Option<Self> {
+        let m = m.as_dmat4();
+        let (r0, r1, r3) = (m.row(0), m.row(1), m.row(3));
+        // The eye: where clip x, y and w are all 0.
+        let a = DMat3::from_cols(r0.truncate(), r1.truncate(), r3.truncate()).transpose();
+        let b = -DVec3::new(r0.w, r1.w, r3.w);
+        let det = a.determinant().abs();
+        let scale: f64 = a.to_cols_array().iter().map(|v| v.abs()).sum();
+        if det.is_nan() || det <= 1e-12 * scale.powi(3) {
+            return None;
+        }
+        let eye = a.inverse() * b;
+        let inv = m.inverse();
+        // The four edge rays: through clip (+-1, +-1) at a depth inside
+        // every convention's range, unprojected.
+        let mut corners = [DVec3::ZERO; 4];
+        let mut centre = DVec3::ZERO;
+        for (k, (x, y)) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            .into_iter()
+            .enumerate()
+        {
+            let q = inv * DVec4::new(x, y, 0.5, 1.0);
+            if q.w == 0.0 || q.w.is_nan() {
+                return None;
+            }
+            let d = q.truncate() / q.w - eye;
+            // In front of the eye: w = r3 . (p, 1) grows along it.
+            let ahead = r3.truncate().dot(d);
+            if ahead.is_nan() || ahead <= 0.0 {
+                return None;
+            }
+            corners[k] = d.normalize();
+            centre += 0.25 * d;
+        }
+        if !(eye.is_finite() && corners.iter().all(|c| c.is_finite())) {
+            return None;
+        }
+        // The axis: through the middle of the image rectangle (the corners
+        // lie on a plane of constant depth), which an off-centre frustum's
+        // principal ray is not.
+        let f = centre.normalize();
+        let up0 = (corners[2] + corners[3]) - (corners[0] + corners[1]);
+        let u = (up0 - f * up0.dot(f)).normalize();
+        let r = f.cross(u);
+        if !(u.is_finite() && r.is_finite()) {
+            return None;
+        }
+        let (mut tx, mut ty) = (0.0f64, 0.0f64);
+        for c in corners {
+            let z = c.dot(f);
+            if z.is_nan() || z <= 0.0 {
+                return None;
+            }
+            tx = tx.max(c.dot(r).abs() / z);
+            ty = ty.max(c.dot(u).abs() / z);
+        }
+        // Rounded up: the f32 angles still hold every edge ray.
+        let fov = |t: f64| ((2.0 * t.atan()) * (1.0 + 1e-6) + 1e-6) as f32;
+        let (fov_x, fov_y) = (fov(tx), fov(ty));
+        if !(fov_x < PI && fov_y < PI) {
+            return None;
+        }
+        Some(Self {
+            position: eye.as_vec3(),
+            radius: 0.0,
+            dir: f.as_vec3(),
+            up: u.as_vec3(),
+            fov_x,
+            fov_y,
+        })
+    }
+
+    /// The same view with its position, direction and up turned from world
+    /// coordinates into `frame`'s (the eye at the nearest local point).
+    pub fn to_local(&self, frame: &Frame, eye: DVec3) -> Self {
+        Self {
+            position: frame.to_local(eye),
+            dir: frame.dir_to_local(self.dir),
+            up: frame.dir_to_local(self.up),
+            ..*self
+        }
+    }
+
     /// A view with a square field of view of `fov_degrees`, up = +z (+y
-    /// when `dir` is vertical), from the point `position`.
+    /// when `dir` is vertical), from the point `position`. A square
+    /// frustum is the same whichever way it is rolled by a right angle,
+    /// so this suits any up axis; use [`View::look`] for any other.
     pub fn square(position: Vec3, dir: Vec3, fov_degrees: f32) -> Self {
         let n = dir.normalize_or_zero();
         let up = if n.z.abs() > 0.999 { Vec3::Y } else { Vec3::Z };
@@ -669,6 +793,10 @@ impl Pvs {
 
     /// As [`Pvs::query_range`], with the box of positions `[min, max]` in
     /// f64 world coordinates (rounded outwards into the tree's frame).
+    ///
+    /// The angles are about the tree's up axis ([`Frame::up`]: phi from
+    /// it, theta about it from the axis after it, cyclically: from world x
+    /// for a Z-up tree, from world z for a Y-up one).
     pub fn query_range_world(
         &self,
         min: DVec3,
@@ -717,20 +845,26 @@ impl Pvs {
     }
 
     /// As [`Pvs::query_view`], with the eye at `eye` in f64 world
-    /// coordinates (`view.position` is not used): the box of eyes
-    /// (`view.radius` around it) is rounded outwards into the tree's frame.
+    /// coordinates (`view.position` is not used) and the view's directions
+    /// in world axes: the box of eyes (`view.radius` around it) is rounded
+    /// outwards into the tree's frame, the directions turned into it.
     pub fn query_view_world(&self, eye: DVec3, view: &View, out: &mut ObjectSet) {
-        let r = DVec3::splat(f64::from(view.radius.max(0.0)));
-        let positions = self.frame.box_to_local(eye - r, eye + r);
-        let local = View {
-            position: self.frame.to_local(eye),
-            ..*view
-        };
+        let (positions, local) = self.local_view(eye, view);
         self.query_view_from(&positions, &local, out);
     }
 
-    /// The objects visible from the local `positions` in `view`'s frustum.
-    fn query_view_from(&self, positions: &Aabb, view: &View, out: &mut ObjectSet) {
+    /// A world view's box of eyes and the view, in the tree's frame.
+    fn local_view(&self, eye: DVec3, view: &View) -> (Aabb, View) {
+        let r = DVec3::splat(f64::from(view.radius.max(0.0)));
+        let positions = self.frame.box_to_local(eye - r, eye + r);
+        (positions, view.to_local(&self.frame, eye))
+    }
+
+    /// The objects visible from some eye in the box `positions` looking
+    /// into `view`'s frustum (`view.position` and `view.radius` are not
+    /// used), both in the tree's frame, written into `out` (cleared
+    /// first): as [`Pvs::query_view`] for a box of eyes of any shape.
+    pub fn query_view_from(&self, positions: &Aabb, view: &View, out: &mut ObjectSet) {
         self.query_view_unculled(positions, view, out);
         self.cull(&Frustum::new(view, positions), out);
     }
@@ -999,5 +1133,141 @@ mod tests {
             frustum_angles(Vec3::X, Vec3::Z, 4.0, 1.0).boxes()[0],
             (-PI, PI, 0.0, PI)
         );
+    }
+
+    /// A matrix from its rows.
+    fn rows(r: [[f32; 4]; 4]) -> Mat4 {
+        Mat4::from_cols_array_2d(&r).transpose()
+    }
+
+    /// Right-handed (OpenGL, Vulkan) or left-handed (Direct3D) view
+    /// matrices.
+    fn look_at(eye: Vec3, forward: Vec3, up: Vec3, right_handed: bool) -> Mat4 {
+        let f = forward.normalize();
+        let (s, u, back) = if right_handed {
+            let s = f.cross(up).normalize();
+            (s, s.cross(f), -f)
+        } else {
+            let s = up.cross(f).normalize();
+            (s, f.cross(s), f)
+        };
+        let row = |a: Vec3| [a.x, a.y, a.z, -a.dot(eye)];
+        rows([row(s), row(u), row(back), [0.0, 0.0, 0.0, 1.0]])
+    }
+
+    /// Projections: (depth row, w row) over the x and y scales and shifts.
+    fn projection(sx: f32, sy: f32, cx: f32, cy: f32, depth: [f32; 4], w: [f32; 4]) -> Mat4 {
+        rows([[sx, 0.0, cx, 0.0], [0.0, sy, cy, 0.0], depth, w])
+    }
+
+    /// Whether direction `d` lies in `view`'s frustum (the frame of
+    /// [`frustum_angles`]), with a relative tolerance.
+    fn in_view(view: &View, d: DVec3) -> bool {
+        let f = view.dir.as_dvec3().normalize();
+        let r0 = f.cross(view.up.as_dvec3());
+        let r = (r0 - f * r0.dot(f)).normalize();
+        let u = r.cross(f);
+        let z = d.dot(f);
+        let tx = (0.5 * f64::from(view.fov_x)).tan();
+        let ty = (0.5 * f64::from(view.fov_y)).tan();
+        z > 0.0 && d.dot(r).abs() <= tx * z && d.dot(u).abs() <= ty * z
+    }
+
+    #[test]
+    fn a_view_projection_matrix_gives_a_view_holding_its_frustum() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(15);
+        let unit = |rng: &mut rand_pcg::Pcg64| {
+            Vec3::new(rng.random(), rng.random(), rng.random()) * 2.0 - Vec3::ONE
+        };
+        for k in 0..300 {
+            let eye = unit(&mut rng) * 50.0;
+            let forward = unit(&mut rng).normalize();
+            let up = (unit(&mut rng) + forward.any_orthonormal_vector()).normalize();
+            let (mut vfov, mut aspect): (f32, f32) =
+                (rng.random_range(0.2..2.0), rng.random_range(0.4..2.5));
+            if k % 6 == 5 {
+                // Off centre, as a headset's eye: up to about 110 degrees.
+                (vfov, aspect) = (vfov.min(1.4), aspect.min(1.6));
+            }
+            let t = 1.0 / (0.5 * vfov).tan();
+            let (n, far) = (0.1f32, 100.0f32);
+            let rh = look_at(eye, forward, up, true);
+            let lh = look_at(eye, forward, up, false);
+            let back = [0.0, 0.0, -1.0, 0.0];
+            let ahead = [0.0, 0.0, 1.0, 0.0];
+            let gl = [0.0, 0.0, (far + n) / (n - far), 2.0 * far * n / (n - far)];
+            let zero_one_rh = [0.0, 0.0, far / (n - far), n * far / (n - far)];
+            let zero_one_lh = [0.0, 0.0, far / (far - n), -n * far / (far - n)];
+            let reversed_infinite = [0.0, 0.0, 0.0, n];
+            let p = |depth, w| projection(t / aspect, t, 0.0, 0.0, depth, w);
+            // (matrix, a clip depth some 10 to 17 units away, symmetric):
+            // the f32 matrix holds its eye to about 1e-5 units.
+            let (m, depth, symmetric) = match k % 6 {
+                0 => (p(gl, back) * rh, 0.99, true),
+                1 => (p(zero_one_rh, back) * rh, 0.99, true),
+                2 => (p(zero_one_lh, ahead) * lh, 0.99, true),
+                3 => (p(reversed_infinite, back) * rh, 0.01, true),
+                // Vulkan's y points down the image.
+                4 => (
+                    Mat4::from_scale(Vec3::new(1.0, -1.0, 1.0)) * p(zero_one_rh, back) * rh,
+                    0.99,
+                    true,
+                ),
+                // Off centre (VR): the eye sees more to one side and up.
+                _ => (
+                    projection(t / aspect, t, 0.4, -0.25, gl, back) * rh,
+                    0.99,
+                    false,
+                ),
+            };
+            let v = View::from_view_projection(m).unwrap_or_else(|| panic!("{k}: {m:?}"));
+            assert!(
+                (v.position - eye).length() < 1e-3 * (1.0 + eye.length()),
+                "{k}: {v:?}"
+            );
+            if symmetric {
+                let fov_x = 2.0 * (aspect * (0.5 * vfov).tan()).atan();
+                assert!((v.fov_y - vfov).abs() < 1e-3, "{k}: {v:?} {vfov}");
+                assert!((v.fov_x - fov_x).abs() < 1e-3, "{k}: {v:?} {fov_x}");
+                assert!(v.dir.dot(forward) > 0.9999, "{k}");
+            }
+            // Every direction the matrix draws is in the view.
+            let inv = m.as_dmat4().inverse();
+            for _ in 0..300 {
+                let (x, y): (f64, f64) =
+                    (rng.random_range(-1.0..=1.0), rng.random_range(-1.0..=1.0));
+                let q = inv * DVec4::new(x, y, depth, 1.0);
+                let d = q.truncate() / q.w - eye.as_dvec3();
+                assert!(in_view(&v, d), "{k}: clip ({x}, {y}) outside {v:?}");
+            }
+        }
+        let ortho = rows([
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, -0.1, -0.01],
+            [0.0, 0.0, 0.0, 1.0],
+        ]);
+        assert!(View::from_view_projection(ortho).is_none());
+        assert!(View::from_view_projection(Mat4::ZERO).is_none());
+        assert!(View::from_view_projection(Mat4::from_cols_array(&[f32::NAN; 16])).is_none());
+    }
+
+    #[test]
+    fn look_sets_both_fields_of_view_and_turns_with_the_frame() {
+        let v = View::look(Vec3::ZERO, Vec3::X, Vec3::Z, 1.0, 2.0);
+        assert_eq!(v.fov_y, 1.0);
+        assert!((v.fov_x - 2.0 * (2.0 * 0.5f32.tan()).atan()).abs() < 1e-6);
+        let y = Frame {
+            origin: DVec3::new(10.0, 0.0, 0.0),
+            up: crate::geom::Up::Y,
+        };
+        let w = View::look(Vec3::ZERO, Vec3::X, Vec3::Y, 1.0, 2.0);
+        let l = w.to_local(&y, DVec3::new(11.0, 2.0, 3.0));
+        assert_eq!(
+            (l.position, l.dir, l.up),
+            (Vec3::new(3.0, 1.0, 2.0), Vec3::Y, Vec3::Z)
+        );
+        assert_eq!((l.fov_x, l.fov_y), (w.fov_x, w.fov_y));
     }
 }

@@ -85,12 +85,7 @@ impl Pvs {
         out: &mut ObjectSet,
     ) -> Vec<ObjectTriangles> {
         self.query_view_world(eye, view, out);
-        let r = DVec3::splat(f64::from(view.radius.max(0.0)));
-        let positions = self.frame.box_to_local(eye - r, eye + r);
-        let local = View {
-            position: self.frame.to_local(eye),
-            ..*view
-        };
+        let (positions, local) = self.local_view(eye, view);
         let ranges = frustum_angles(local.dir, local.up, local.fov_x, local.fov_y);
         self.triangles_of(&positions, ranges.boxes(), out)
     }

@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 use glam::{DVec3, Vec3};
 use rand::{Rng, RngExt};
 
-use crate::geom::{Aabb, Frame};
+use crate::geom::{Aabb, Frame, Up};
 use crate::invariant::InvariantError;
 
 pub use scene_builder::SceneBuilder;
@@ -261,6 +261,9 @@ pub struct LoadOptions {
     /// file's own size; buffer files are read only as far as the glTF
     /// declares).
     pub max_file_bytes: u64,
+    /// The scene's up axis in its file's coordinates (default +z): local
+    /// z follows it ([`Scene::with_up`]).
+    pub up: Up,
 }
 
 impl Default for LoadOptions {
@@ -268,6 +271,7 @@ impl Default for LoadOptions {
         Self {
             allow_outside_paths: false,
             max_file_bytes: u64::MAX,
+            up: Up::Z,
         }
     }
 }
@@ -391,7 +395,39 @@ impl Scene {
                     })?;
             }
         }
-        b.finish(name)
+        Ok(b.finish(name)?.with_up(self.frame.up))
+    }
+
+    /// The same scene with world axis `up` as its up axis (`vis5d --up`):
+    /// its local coordinates turned so that `up` is local +z
+    /// ([`Frame`]), exactly (the axes are permuted), and its areas
+    /// recomputed in the new coordinates, so that it is the very scene a
+    /// model turned that way in the file would give.
+    pub fn with_up(mut self, up: Up) -> Scene {
+        if up == self.frame.up {
+            return self;
+        }
+        let (old, new) = (self.frame, Frame { up, ..self.frame });
+        let turn = |v: Vec3| new.dir_to_local(old.dir_to_world(v));
+        for t in &mut self.triangles {
+            *t = t.map(turn);
+        }
+        for o in &mut self.objects {
+            o.bounds = Aabb::new(turn(o.bounds.min), turn(o.bounds.max));
+            let range = o.triangles.start as usize..o.triangles.end as usize;
+            let mut area = 0.0;
+            for (t, c) in self.triangles[range.clone()]
+                .iter()
+                .zip(&mut self.area_cdf[range])
+            {
+                area += triangle_area(t);
+                *c = area;
+            }
+            o.area = area;
+        }
+        self.bounds = Aabb::new(turn(self.bounds.min), turn(self.bounds.max));
+        self.frame = new;
+        self
     }
 
     /// The format the scene was read from.
@@ -550,11 +586,12 @@ fn parse(
     options: &LoadOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Scene, SceneError> {
-    match format {
+    let scene = match format {
         SceneFormat::Obj => load_obj::load_obj(path, bytes, progress),
         SceneFormat::Gltf | SceneFormat::Glb => load_gltf::load_gltf(path, bytes, format, options),
         SceneFormat::Procedural => unreachable!("no extension maps to Procedural"),
-    }
+    }?;
+    Ok(scene.with_up(options.up))
 }
 
 /// Parses OBJ text held in memory; `path` is only used in messages and to

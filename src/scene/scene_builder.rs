@@ -140,7 +140,7 @@ impl SceneBuilder {
         }
         // Local coordinates are now within a few diagonals of zero, at most
         // a few times MAX_EXTENT: finite in f32.
-        let frame = Frame::for_bounds(min, max);
+        let frame = Frame::for_bounds(min, max, crate::geom::Up::Z);
         let mut triangles = Vec::with_capacity(self.world.len());
         let mut area_cdf = Vec::with_capacity(self.world.len());
         let mut objects = Vec::with_capacity(self.groups.len());

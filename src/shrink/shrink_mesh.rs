@@ -176,6 +176,9 @@ impl Solid {
             });
         // Closed: every edge has one twin in the other direction (the
         // winding consistent), but for the edges of a floor in its plane.
+        // Keep this check: the oracle's solids to slice are only closed
+        // modulo two (any winding, edges of four triangles), and moving
+        // vertices against their normals needs a consistent winding.
         let mut directed: HashMap<(u32, u32), u32> = HashMap::with_capacity(3 * tris.len());
         for t in &tris {
             for k in 0..3 {

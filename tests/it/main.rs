@@ -18,6 +18,7 @@ mod shrink;
 mod slices;
 mod sprt;
 mod trace;
+mod up_axis;
 mod v5d;
 
 use std::path::{Path, PathBuf};

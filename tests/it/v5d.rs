@@ -472,7 +472,20 @@ fn leaf_records_round_trip_and_lies_are_refused() {
         .map(|r| varint_len(r.rejected) + varint_len(r.fewest_rays) + varint_len(r.undecided))
         .sum::<usize>();
     assert_eq!(good[good.len() - 8..good.len() - 4], [0; 4], "no slices");
-    let mut v2 = good[..good.len() - 8 - records_len].to_vec();
+    // Before version 5 no up axis: the byte after the frame origin goes
+    // (2: +z).
+    let mut pre5 = good[..good.len() - 4].to_vec();
+    assert_eq!(pre5.remove(96), 2, "the up axis");
+    let mut v4 = pre5.clone();
+    v4[8..10].copy_from_slice(&4u16.to_le_bytes());
+    let crc = codec::crc32(&v4);
+    v4.extend_from_slice(&crc.to_le_bytes());
+    let old4 = codec::read_file(&v4, ReadLimits::default()).unwrap();
+    assert_eq!(
+        old4,
+        codec::read_file(&good, ReadLimits::default()).unwrap()
+    );
+    let mut v2 = pre5[..pre5.len() - 4 - records_len].to_vec();
     v2[8..10].copy_from_slice(&2u16.to_le_bytes());
     let crc = codec::crc32(&v2);
     v2.extend_from_slice(&crc.to_le_bytes());
@@ -480,7 +493,7 @@ fn leaf_records_round_trip_and_lies_are_refused() {
     assert_eq!(old.tree.leaf_records(), None);
     assert_eq!(old.tree.nodes(), tree.nodes());
     // And as version 3: the slices' length goes.
-    let mut v3 = good[..good.len() - 8].to_vec();
+    let mut v3 = pre5[..pre5.len() - 4].to_vec();
     v3[8..10].copy_from_slice(&3u16.to_le_bytes());
     let crc = codec::crc32(&v3);
     v3.extend_from_slice(&crc.to_le_bytes());
