@@ -52,7 +52,7 @@ fn queries(c: &mut Criterion) {
         let mean: f64 = views
             .iter()
             .map(|v| {
-                pvs.query_view(v, &mut set);
+                pvs.query_view(v, &mut set).unwrap();
                 set.count() as f64
             })
             .sum::<f64>()
@@ -70,7 +70,7 @@ fn queries(c: &mut Criterion) {
         g.bench_function(BenchmarkId::new("view", name), |b| {
             b.iter(|| {
                 for v in &views {
-                    pvs.query_view(v, &mut set);
+                    pvs.query_view(v, &mut set).unwrap();
                 }
             })
         });

@@ -52,14 +52,17 @@
 //!     // A camera as the engine holds it: eye, forward, up, vertical field
 //!     // of view, aspect (or View::from_view_projection(its matrix)).
 //!     let view = View::look(eye, Vec3::new(1.0, 0.2, -0.1), Vec3::Z, 1.0, 16.0 / 9.0);
-//!     pvs.query_view(&view, &mut visible); // no allocation
+//!     // No allocation; an error only for a set not made by new_set.
+//!     let answer = pvs.query_view(&view, &mut visible)?;
+//!     // Answer::Everything: the eye is outside the baked view box.
+//!     assert_eq!(answer, vis5d::query::Answer::Tree);
 //!     for object in visible.iter() {
 //!         let _name = &pvs.objects()[object].name; // draw(object)
 //!     }
 //!     assert!(visible.count() < pvs.object_count());
 //! }
 //! # }
-//! # Ok::<(), vis5d::codec::CodecError>(())
+//! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
 //! Positions are world coordinates for a scene modelled around the

@@ -26,8 +26,8 @@ fuzz_target!(|data: &[u8]| {
         let f = chunk.iter().fold(0u32, |a, &b| a * 256 + b as u32) as f32 / u32::MAX as f32;
         let p = root.lerp(Vec3::splat(f));
         let dir = [Vec3::X, -Vec3::Z, Vec3::new(f - 0.5, 0.3, -f)][k % 3];
-        pvs.query_view(&View::square(p, dir, 10.0 + 160.0 * f), &mut out);
-        pvs.query_range(&Aabb::new(p, p), (f * 6.0 - 3.0, -1.0), (0.0, f * 3.0), &mut out);
+        let _ = pvs.query_view(&View::square(p, dir, 10.0 + 160.0 * f), &mut out);
+        let _ = pvs.query_range(&Aabb::new(p, p), (f * 6.0 - 3.0, -1.0), (0.0, f * 3.0), &mut out);
         // With slices (version 4): the triangle ranges too.
         let _ = pvs.query_view_triangles(&View::square(p, dir, 90.0), &mut out);
         let _ = pvs.leaf_set([p.x, p.y, p.z, f, f]);

@@ -6,10 +6,10 @@ use std::path::PathBuf;
 use anyhow::{Result, bail};
 use clap::Args;
 use glam::{DVec3, Vec3};
-use vis5d::query::Pvs;
+use vis5d::query::{Answer, Pvs};
 
 use crate::common::{
-    ViewDefaults, WorldBox, WorldView, load_scene_up, parse_box, parse_point, parse_vec3,
+    ViewDefaults, World, WorldBox, WorldView, load_scene_up, parse_box, parse_point, parse_vec3,
     printable, read_views,
 };
 
@@ -132,10 +132,22 @@ pub fn run(args: &QueryArgs) -> Result<()> {
             None => v.positions(&frame),
         };
         let v = v.local(&frame);
-        pvs.query_view_from(&positions, &v, &mut set);
+        let answer = pvs.query_view_from(&positions, &v, &mut set)?;
+        if answer == Answer::Everything {
+            eprintln!(
+                "note: {}: every object in the frustum: the eye lies outside the view box the tree was built for ({} .. {})",
+                if many {
+                    format!("view {i}")
+                } else {
+                    "the view".to_owned()
+                },
+                World(frame, pvs.view_box().min),
+                World(frame, pvs.view_box().max)
+            );
+        }
         if args.triangles {
             let r = vis5d::query::frustum_angles(v.dir, v.up, v.fov_x, v.fov_y);
-            let drawn = pvs.triangles_of(&positions, r.boxes(), &set);
+            let drawn = pvs.triangles_of(&positions, r.boxes(), &set)?;
             let rows: Vec<TrianglesJson> = drawn
                 .iter()
                 .map(|d| TrianglesJson {

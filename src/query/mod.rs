@@ -94,6 +94,31 @@ pub struct FingerprintMismatch {
     pub scene: u64,
 }
 
+/// How a query was answered.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Answer {
+    /// From the tree: the union of the leaf sets the query meets.
+    Tree,
+    /// Every object (culled to the frustum, for a view): some position of
+    /// the query lies outside the view box the tree was built for
+    /// ([`Pvs::view_box`]), where nothing was sampled and nothing may be
+    /// culled, or the query held a NaN. The conservative answer.
+    Everything,
+}
+
+/// An answer set of another size than the file's object count: make sets
+/// with [`Pvs::new_set`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "the answer set holds {got} objects but the .v5d file has {expected}: make it with Pvs::new_set"
+)]
+pub struct SetSizeError {
+    /// The set's capacity.
+    pub got: usize,
+    /// The file's object count.
+    pub expected: usize,
+}
+
 /// A node as queries need it: the split value is precomputed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct QueryNode {
@@ -564,6 +589,8 @@ pub struct Pvs {
     records: Option<Vec<LeafRecord>>,
     /// The leaves' hidden slices, when the file has them (version 4).
     slices: Option<TreeSlices>,
+    /// Every object's bit: the answer outside the view box.
+    all: Vec<u64>,
     /// Per node, its rank among the leaves in preorder (leaves only
     /// meaningful); empty without slices.
     leaf_rank: Vec<u32>,
@@ -598,7 +625,8 @@ impl Pvs {
         let slices = file.slices;
         let tree = file.tree;
         let (root, grid_bits) = (tree.root_cell(), tree.grid_bits());
-        let words = tree.object_count().div_ceil(64);
+        let n_objects = tree.object_count();
+        let words = n_objects.div_ceil(64);
         let (tree_nodes, leaf_records) = tree.into_parts();
         let mut leaf_records = leaf_records.map(|r| r.into_iter());
         let mut records = leaf_records
@@ -665,6 +693,7 @@ impl Pvs {
             records,
             slices,
             leaf_rank,
+            all: ObjectSet::full(n_objects).words().to_vec(),
         })
     }
 
@@ -763,19 +792,50 @@ impl Pvs {
     }
 
     /// The set of the leaf holding the ray point `p` = (x, y, z, theta,
-    /// phi), local coordinates, as words of bits (bit i = object i).
-    pub fn leaf_set(&self, p: [f32; DIMS]) -> &[u64] {
-        self.set_words(self.leaf_of(p))
+    /// phi), local coordinates, as words of bits (bit i = object i), and
+    /// [`Answer::Tree`]; every object and [`Answer::Everything`] for a
+    /// point outside the view box ([`Pvs::view_box`]), a direction's
+    /// angles outside their ranges or a NaN.
+    pub fn leaf_set(&self, p: [f32; DIMS]) -> (&[u64], Answer) {
+        if self.holds(p) {
+            (self.set_words(self.leaf_of(p)), Answer::Tree)
+        } else {
+            (&self.all, Answer::Everything)
+        }
+    }
+
+    /// The box of eye positions the tree was built for (local
+    /// coordinates): queries from outside it answer every object.
+    pub fn view_box(&self) -> Aabb {
+        self.root.space()
+    }
+
+    /// Whether the ray point `p` lies in the root cell (NaN: no).
+    fn holds(&self, p: [f32; DIMS]) -> bool {
+        (0..DIMS).all(|d| p[d] >= self.root.lo[d] && p[d] <= self.root.hi[d])
+    }
+
+    /// `Ok` when `out` has one bit per object of the file.
+    fn check_set(&self, out: &ObjectSet) -> Result<(), SetSizeError> {
+        if out.capacity() == self.objects.len() {
+            Ok(())
+        } else {
+            Err(SetSizeError {
+                got: out.capacity(),
+                expected: self.objects.len(),
+            })
+        }
     }
 
     /// How sure the set of the leaf holding the ray point `p` (local
     /// coordinates) is: the objects its build called invisible, the fewest
     /// rays behind one, the objects kept undecided
     /// ([`LeafRecord::largest_missed_fraction`] reads the residual risk).
-    /// `None` for files before version 3.
+    /// `None` for files before version 3, and outside the root cell (see
+    /// [`Pvs::leaf_set`]).
     pub fn leaf_record(&self, p: [f32; DIMS]) -> Option<LeafRecord> {
         let records = self.records.as_ref()?;
-        Some(records[self.leaf_of(p)])
+        self.holds(p).then(|| records[self.leaf_of(p)])
     }
 
     /// The records of all leaves, in preorder, when the file has them.
@@ -804,53 +864,64 @@ impl Pvs {
         theta: (f32, f32),
         phi: (f32, f32),
         out: &mut ObjectSet,
-    ) {
+    ) -> Result<Answer, SetSizeError> {
         let local = self.frame.box_to_local(min, max);
-        self.query_range(&local, theta, phi, out);
+        self.query_range(&local, theta, phi, out)
     }
 
     /// The objects visible from some ray with origin in `positions` (the
     /// tree's frame: see the module docs) and direction angles in `theta`
     /// x `phi` (closed ranges, radians; theta may wrap: `theta.0 >
     /// theta.1` means `[theta.0, pi] u [-pi, theta.1]`), written into
-    /// `out` (cleared first).
+    /// `out` (cleared first). [`Answer::Everything`] when `positions`
+    /// reach outside the view box or the range holds a NaN; an error,
+    /// `out` untouched, when `out` is not of the file's size.
     pub fn query_range(
         &self,
         positions: &Aabb,
         theta: (f32, f32),
         phi: (f32, f32),
         out: &mut ObjectSet,
-    ) {
+    ) -> Result<Answer, SetSizeError> {
+        self.check_set(out)?;
         out.clear();
-        if theta.0 <= theta.1 {
-            self.accumulate(positions, theta, phi, out);
+        Ok(if theta.0 <= theta.1 {
+            self.accumulate(positions, theta, phi, out)
         } else {
-            self.accumulate(positions, (theta.0, PI), phi, out);
-            self.accumulate(positions, (-PI, theta.1), phi, out);
-        }
+            let a = self.accumulate(positions, (theta.0, PI), phi, out);
+            let b = self.accumulate(positions, (-PI, theta.1), phi, out);
+            a.max(b)
+        })
     }
 
     /// The objects visible from `view` (its position in the tree's frame:
     /// see the module docs), written into `out` (cleared first): the
     /// tree's answer for the view's directions, culled to its frustum with
     /// the objects' bounds ([`Frustum`]; a version 1 file has none and is
-    /// not culled).
-    pub fn query_view(&self, view: &View, out: &mut ObjectSet) {
+    /// not culled). [`Answer::Everything`] (every object in the frustum)
+    /// from outside the view box; an error, `out` untouched, when `out` is
+    /// not of the file's size.
+    pub fn query_view(&self, view: &View, out: &mut ObjectSet) -> Result<Answer, SetSizeError> {
         let r = view.radius.max(0.0);
         let positions = Aabb::new(
             view.position - Vec3::splat(r),
             view.position + Vec3::splat(r),
         );
-        self.query_view_from(&positions, view, out);
+        self.query_view_from(&positions, view, out)
     }
 
     /// As [`Pvs::query_view`], with the eye at `eye` in f64 world
     /// coordinates (`view.position` is not used) and the view's directions
     /// in world axes: the box of eyes (`view.radius` around it) is rounded
     /// outwards into the tree's frame, the directions turned into it.
-    pub fn query_view_world(&self, eye: DVec3, view: &View, out: &mut ObjectSet) {
+    pub fn query_view_world(
+        &self,
+        eye: DVec3,
+        view: &View,
+        out: &mut ObjectSet,
+    ) -> Result<Answer, SetSizeError> {
         let (positions, local) = self.local_view(eye, view);
-        self.query_view_from(&positions, &local, out);
+        self.query_view_from(&positions, &local, out)
     }
 
     /// A world view's box of eyes and the view, in the tree's frame.
@@ -864,9 +935,16 @@ impl Pvs {
     /// into `view`'s frustum (`view.position` and `view.radius` are not
     /// used), both in the tree's frame, written into `out` (cleared
     /// first): as [`Pvs::query_view`] for a box of eyes of any shape.
-    pub fn query_view_from(&self, positions: &Aabb, view: &View, out: &mut ObjectSet) {
-        self.query_view_unculled(positions, view, out);
+    pub fn query_view_from(
+        &self,
+        positions: &Aabb,
+        view: &View,
+        out: &mut ObjectSet,
+    ) -> Result<Answer, SetSizeError> {
+        self.check_set(out)?;
+        let answer = self.query_view_unculled(positions, view, out);
         self.cull(&Frustum::new(view, positions), out);
+        Ok(answer)
     }
 
     /// Removes from `out` the objects whose bounds `frustum` cannot see.
@@ -887,12 +965,14 @@ impl Pvs {
 
     /// The union of the leaf sets the view's positions and directions
     /// meet, not culled to the frustum.
-    fn query_view_unculled(&self, positions: &Aabb, view: &View, out: &mut ObjectSet) {
+    fn query_view_unculled(&self, positions: &Aabb, view: &View, out: &mut ObjectSet) -> Answer {
         out.clear();
         let ranges = frustum_angles(view.dir, view.up, view.fov_x, view.fov_y);
+        let mut answer = Answer::Tree;
         for &(t0, t1, p0, p1) in ranges.boxes() {
-            self.accumulate(positions, (t0, t1), (p0, p1), out);
+            answer = answer.max(self.accumulate(positions, (t0, t1), (p0, p1), out));
         }
+        answer
     }
 
     /// The range of `positions` x `theta` x `phi`, its angles clipped to
@@ -921,23 +1001,22 @@ impl Pvs {
         })
     }
 
-    /// Adds the objects of the range to `out`. Angles are clipped to the
-    /// root; an empty range adds nothing; a range with a NaN adds
-    /// everything ([`Pvs::clip_range`]).
+    /// Adds the objects of the range to `out` (of the file's size).
+    /// Angles are clipped to the root; an empty range adds nothing; a
+    /// range with a NaN or reaching outside the view box adds everything
+    /// ([`Pvs::clip_range`]).
     fn accumulate(
         &self,
         positions: &Aabb,
         theta: (f32, f32),
         phi: (f32, f32),
         out: &mut ObjectSet,
-    ) {
+    ) -> Answer {
         let range = match self.clip_range(positions, theta, phi) {
-            Clipped::Empty => return,
+            Clipped::Empty => return Answer::Tree,
             Clipped::Everything => {
-                for o in 0..self.objects.len() {
-                    out.insert(o);
-                }
-                return;
+                out.union_words(&self.all);
+                return Answer::Everything;
             }
             Clipped::Range(range) => range,
         };
@@ -948,6 +1027,7 @@ impl Pvs {
             out: out.words_mut(),
         };
         self.visit(0, self.root, &mut descent);
+        Answer::Tree
     }
 
     fn visit(&self, i: usize, cell: Cell, descent: &mut Descent<'_>) {

@@ -14,7 +14,7 @@ use std::ops::Range;
 
 use glam::{DVec3, Vec3};
 
-use super::{Clipped, LEAF, Pvs, View, frustum_angles};
+use super::{Clipped, LEAF, Pvs, SetSizeError, View, frustum_angles};
 use crate::bitset::ObjectSet;
 use crate::geom::Aabb;
 use crate::geom::cell::DIMS;
@@ -53,8 +53,8 @@ impl Pvs {
         theta: (f32, f32),
         phi: (f32, f32),
         out: &mut ObjectSet,
-    ) -> Vec<ObjectTriangles> {
-        self.query_range(positions, theta, phi, out);
+    ) -> Result<Vec<ObjectTriangles>, SetSizeError> {
+        self.query_range(positions, theta, phi, out)?;
         let boxes = if theta.0 <= theta.1 {
             vec![(theta.0, theta.1, phi.0, phi.1)]
         } else {
@@ -65,8 +65,12 @@ impl Pvs {
 
     /// [`Pvs::query_view`] (the objects, into `out`), and per object of
     /// `out` the triangles to draw, in object order.
-    pub fn query_view_triangles(&self, view: &View, out: &mut ObjectSet) -> Vec<ObjectTriangles> {
-        self.query_view(view, out);
+    pub fn query_view_triangles(
+        &self,
+        view: &View,
+        out: &mut ObjectSet,
+    ) -> Result<Vec<ObjectTriangles>, SetSizeError> {
+        self.query_view(view, out)?;
         let r = view.radius.max(0.0);
         let positions = Aabb::new(
             view.position - Vec3::splat(r),
@@ -83,8 +87,8 @@ impl Pvs {
         eye: DVec3,
         view: &View,
         out: &mut ObjectSet,
-    ) -> Vec<ObjectTriangles> {
-        self.query_view_world(eye, view, out);
+    ) -> Result<Vec<ObjectTriangles>, SetSizeError> {
+        self.query_view_world(eye, view, out)?;
         let (positions, local) = self.local_view(eye, view);
         let ranges = frustum_angles(local.dir, local.up, local.fov_x, local.fov_y);
         self.triangles_of(&positions, ranges.boxes(), out)
@@ -94,13 +98,14 @@ impl Pvs {
     /// range queries of `positions` x each of the angle boxes `(theta0,
     /// theta1, phi0, phi1)`, such as [`super::AngularRanges::boxes`]), for
     /// the leaves those ranges meet; each object whole without slices.
-    /// Objects past the file's count are left out.
+    /// An error when `objects` is not of the file's size.
     pub fn triangles_of(
         &self,
         positions: &Aabb,
         boxes: &[(f32, f32, f32, f32)],
         objects: &ObjectSet,
-    ) -> Vec<ObjectTriangles> {
+    ) -> Result<Vec<ObjectTriangles>, SetSizeError> {
+        self.check_set(objects)?;
         let whole = |o: usize| ObjectTriangles {
             object: o as u32,
             ranges: match self.objects[o].triangles {
@@ -108,22 +113,20 @@ impl Pvs {
                 n => std::iter::once(0..n).collect(),
             },
         };
-        let known = |o: &usize| *o < self.objects.len();
         let Some(slices) = &self.slices else {
-            return objects.iter().filter(known).map(whole).collect();
+            return Ok(objects.iter().map(whole).collect());
         };
         let mut leaves = Vec::new();
         for &(t0, t1, p0, p1) in boxes {
             if !self.leaves_met(positions, (t0, t1), (p0, p1), &mut leaves) {
                 // Outside the tree or not a range: nothing culled.
-                return objects.iter().filter(known).map(whole).collect();
+                return Ok(objects.iter().map(whole).collect());
             }
         }
         leaves.sort_unstable();
         leaves.dedup();
-        objects
+        Ok(objects
             .iter()
-            .filter(known)
             .map(|o| {
                 // Each holding leaf's indices for the object, looked up
                 // once; a leaf without any draws it whole.
@@ -154,7 +157,7 @@ impl Pvs {
                     ranges,
                 }
             })
-            .collect()
+            .collect())
     }
 
     /// Adds to `leaves` the nodes of the leaves the range meets (clipped as

@@ -417,10 +417,13 @@ pub fn run(
             .chain(conservative.map(|c| (c, Method::ConservativeTree)))
         {
             let start = Instant::now();
+            // Both trees were checked to be the scene's (its fingerprint):
+            // the set, made for the scene's objects, is of their size.
+            const SAME: &str = "a tree of the scene answers into a set of its size";
             let ranges = if tree.slices().is_some() {
-                Some(tree.query_view_triangles(view, &mut set))
+                Some(tree.query_view_triangles(view, &mut set).expect(SAME))
             } else {
-                tree.query_view(view, &mut set);
+                tree.query_view(view, &mut set).expect(SAME);
                 None
             };
             let s = start.elapsed().as_secs_f64();

@@ -604,7 +604,8 @@ fn any_accepted_scene_builds_a_tree_that_decodes() {
         pvs.query_view(
             &View::square(scene.bounds().center(), Vec3::X, 90.0),
             &mut out,
-        );
+        )
+        .unwrap();
     }
     assert!(accepted >= 40, "{accepted} accepted, {refused} refused");
     eprintln!("{accepted} accepted, {refused} refused, {splits} trees split");
@@ -644,8 +645,8 @@ fn far_trees_take_f64_world_positions() {
     for v in &views {
         // The eye in world coordinates, f64, exactly as a user holds it.
         let eye = frame.to_world(v.position);
-        pvs.query_view_world(eye, v, &mut a);
-        pvs.query_view(v, &mut b);
+        pvs.query_view_world(eye, v, &mut a).unwrap();
+        pvs.query_view(v, &mut b).unwrap();
         assert!(b.is_subset(&a), "{v:?}");
         equal += usize::from(a == b);
         assert!(a.count() < pvs.object_count(), "{v:?}: nothing culled");

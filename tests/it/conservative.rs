@@ -51,7 +51,7 @@ fn assert_never_misses(name: &str, s: &Scene, tree: VisTree, views: usize) -> f6
         .iter()
         .enumerate()
     {
-        pvs.query_view(view, &mut answer);
+        pvs.query_view(view, &mut answer).unwrap();
         let ids = IdBuffer::render(&tracer, &Camera::new(view, 64, 64).unwrap());
         hit_pixels += ids.hit_pixels();
         for (o, n) in ids.object_pixels(s.objects().len()) {

@@ -72,7 +72,9 @@ fn queries_never_cull_a_triangle_a_ray_hits_and_cull_much() {
             (t - 0.1, t + 0.1),
             ((p - 0.1).max(0.0), (p + 0.1).min(std::f32::consts::PI)),
         );
-        let answer = pvs.query_range_triangles(&positions, theta, phi, &mut set);
+        let answer = pvs
+            .query_range_triangles(&positions, theta, phi, &mut set)
+            .unwrap();
         drawn += answer.iter().map(|a| a.count()).sum::<u64>();
         whole += set
             .iter()
@@ -182,7 +184,7 @@ fn damaged_slices_are_refused_by_name() {
         let _ = read_file(&b, ReadLimits::default());
         if let Ok(pvs) = Pvs::from_bytes(&b) {
             let mut set = pvs.new_set();
-            let drawn = pvs.query_view_triangles(&view, &mut set);
+            let drawn = pvs.query_view_triangles(&view, &mut set).unwrap();
             assert_eq!(drawn.len(), set.count());
         }
     }

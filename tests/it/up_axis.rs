@@ -112,7 +112,8 @@ fn a_scene_turned_and_built_with_its_up_axis_gives_the_same_tree_and_answers() {
                 ..view
             };
             let mut set = pvs.new_set();
-            pvs.query_view_world(turn(*axis, eye), &turned, &mut set);
+            pvs.query_view_world(turn(*axis, eye), &turned, &mut set)
+                .unwrap();
             answers.push(set.iter().collect::<Vec<_>>());
         }
         assert_eq!(answers[1], answers[0], "view {k} (--up y)");
@@ -217,6 +218,6 @@ fn a_scene_turned_and_built_with_its_up_axis_gives_the_same_tree_and_answers() {
 /// The objects `pvs` answers for `view` from the world eye `eye`, sorted.
 fn pvs_answer(pvs: &Pvs, eye: DVec3, view: &View) -> Vec<usize> {
     let mut set = pvs.new_set();
-    pvs.query_view_world(eye, view, &mut set);
+    pvs.query_view_world(eye, view, &mut set).unwrap();
     set.iter().collect()
 }

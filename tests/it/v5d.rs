@@ -11,7 +11,7 @@ use vis5d::builder::{BuildParams, build, to_file};
 use vis5d::codec::{self, CodecError, Coding, ReadLimits};
 use vis5d::geom::Aabb;
 use vis5d::geom::cell::{Cell, DIMS, direction_to_angles};
-use vis5d::query::{Pvs, View};
+use vis5d::query::{Answer, Pvs, SetSizeError, View};
 use vis5d::random::{uniform_direction, uniform_point};
 use vis5d::render::Camera;
 use vis5d::scene::{self, Scene};
@@ -76,7 +76,10 @@ fn the_leaf_found_by_the_query_holds_the_builders_set() {
             rng.random(),
         ]);
         let leaf = tree.locate(p);
-        assert_eq!(pvs.leaf_set(p), tree.nodes()[leaf].set.words());
+        assert_eq!(
+            pvs.leaf_set(p),
+            (tree.nodes()[leaf].set.words(), Answer::Tree)
+        );
     }
 }
 
@@ -135,7 +138,8 @@ fn range_queries_equal_a_linear_scan_of_the_leaves() {
             (range.lo[3], range.hi[3]),
             (range.lo[4], range.hi[4]),
             &mut out,
-        );
+        )
+        .unwrap();
         let mut want = ObjectSet::new(tree.object_count());
         for l in leaves.iter().filter(|l| meets(&range, &l.cell, &root)) {
             want.union_with(&tree.nodes()[l.node].set);
@@ -160,7 +164,7 @@ fn a_view_query_holds_every_pixel_rays_leaf_set() {
         }
         let fov = [60.0, 90.0, 120.0][k % 3];
         let view = View::square(eye, dir, fov);
-        pvs.query_view(&view, &mut out);
+        pvs.query_view(&view, &mut out).unwrap();
         sizes += out.count();
         // The answer is culled to the frustum: every pixel ray's leaf set,
         // less the objects whose bounds lie outside the frustum, is in it,
@@ -198,33 +202,75 @@ fn odd_ranges_are_answered_safely() {
     let pvs = Pvs::from_bytes(&file_bytes(None)).unwrap();
     let mut out = pvs.new_set();
     // Outside the view box: every object the frustum holds (looking back
-    // at the whole apartment), none of those behind the eye.
-    pvs.query_view(
-        &View::square(Vec3::new(100.0, 2.6, 1.3), -Vec3::X, 90.0),
-        &mut out,
-    );
+    // at the whole apartment), none of those behind the eye, and it says
+    // so.
+    let back = View::square(Vec3::new(100.0, 2.6, 1.3), -Vec3::X, 90.0);
+    assert_eq!(pvs.query_view(&back, &mut out), Ok(Answer::Everything));
     assert_eq!(out.count(), pvs.object_count());
-    pvs.query_view(
-        &View::square(Vec3::new(100.0, 2.6, 1.3), Vec3::X, 90.0),
-        &mut out,
-    );
+    let away = View::square(Vec3::new(100.0, 2.6, 1.3), Vec3::X, 90.0);
+    assert_eq!(pvs.query_view(&away, &mut out), Ok(Answer::Everything));
     assert_eq!(out.count(), 0);
     // A NaN anywhere: everything; an empty range: nothing.
     let b = pvs.root_cell().space();
+    assert_eq!(pvs.view_box(), b);
     let c = Aabb::new(b.center(), b.center());
-    pvs.query_range(&c, (0.0, 1.0), (f32::NAN, 1.0), &mut out);
+    let nan = pvs.query_range(&c, (0.0, 1.0), (f32::NAN, 1.0), &mut out);
+    assert_eq!(nan, Ok(Answer::Everything));
     assert_eq!(out.count(), pvs.object_count());
-    pvs.query_range(&c, (0.0, 1.0), (2.0, 1.0), &mut out);
+    let empty = pvs.query_range(&c, (0.0, 1.0), (2.0, 1.0), &mut out);
+    assert_eq!(empty, Ok(Answer::Tree));
     assert_eq!(out.count(), 0);
     let inverted = Aabb::new(b.center() + Vec3::X * 0.1, b.center());
-    pvs.query_range(&inverted, (0.0, 1.0), (0.0, 1.0), &mut out);
+    pvs.query_range(&inverted, (0.0, 1.0), (0.0, 1.0), &mut out)
+        .unwrap();
     assert_eq!(out.count(), 0);
     // Angles beyond the root are clipped: the same as the full range.
     let mut full = pvs.new_set();
     let pi = std::f32::consts::PI;
-    pvs.query_range(&c, (-4.0, 4.0), (-1.0, 4.0), &mut out);
-    pvs.query_range(&c, (-pi, pi), (0.0, pi), &mut full);
+    pvs.query_range(&c, (-4.0, 4.0), (-1.0, 4.0), &mut out)
+        .unwrap();
+    let inside = pvs.query_range(&c, (-pi, pi), (0.0, pi), &mut full);
+    assert_eq!(inside, Ok(Answer::Tree));
     assert_eq!(out, full);
+    // The leaf of a point outside the view box (or of a NaN): every
+    // object, and it says so; no record.
+    let n = pvs.object_count();
+    for p in [
+        [100.0, 2.6, 1.3, 0.0, 1.0],
+        [f32::NAN, 2.6, 1.3, 0.0, 1.0],
+        [b.center().x, b.center().y, b.center().z, 0.0, 4.0],
+    ] {
+        let (words, answer) = pvs.leaf_set(p);
+        assert_eq!(answer, Answer::Everything, "{p:?}");
+        assert_eq!(ObjectSet::from_words(n, words.to_vec()).unwrap().count(), n);
+        assert_eq!(pvs.leaf_record(p), None);
+    }
+    let centre = [b.center().x, b.center().y, b.center().z, 0.0, 1.0];
+    assert_eq!(pvs.leaf_set(centre).1, Answer::Tree);
+    // A set of another size: an error, the set untouched; never a
+    // truncated answer or a panic.
+    let inside_view = View::square(b.center(), Vec3::X, 90.0);
+    for size in [0, n - 1, n + 1, n + 64] {
+        let mut wrong = ObjectSet::new(size);
+        if size > 0 {
+            wrong.insert(0);
+        }
+        let expected = Err(SetSizeError {
+            got: size,
+            expected: n,
+        });
+        assert_eq!(pvs.query_view(&inside_view, &mut wrong), expected);
+        assert_eq!(pvs.query_view(&back, &mut wrong), expected);
+        assert_eq!(
+            pvs.query_range(&c, (-pi, pi), (0.0, pi), &mut wrong),
+            expected
+        );
+        assert_eq!(
+            pvs.query_view_triangles(&inside_view, &mut wrong).err(),
+            expected.err()
+        );
+        assert_eq!(wrong.count(), usize::from(size > 0));
+    }
 }
 
 #[test]
@@ -357,7 +403,8 @@ fn regression_corpus_decodes_without_panicking() {
         if let Ok(pvs) = &decoded {
             let mut out = pvs.new_set();
             let c = pvs.root_cell().space().center();
-            pvs.query_view(&View::square(c, Vec3::X, 90.0), &mut out);
+            pvs.query_view(&View::square(c, Vec3::X, 90.0), &mut out)
+                .unwrap();
         }
         // Files are named after what reading them must give.
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
