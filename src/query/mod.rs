@@ -54,8 +54,10 @@ use crate::geom::{Aabb, Frame};
 use crate::slices::TreeSlices;
 use crate::tree::LeafRecord;
 
+mod query_prefetch;
 mod query_triangles;
 
+pub use query_prefetch::Delta;
 pub use query_triangles::ObjectTriangles;
 
 /// Why a `.v5d` file cannot be used.
@@ -766,6 +768,31 @@ impl Pvs {
     /// The number of tree nodes.
     pub fn node_count(&self) -> usize {
         self.nodes.len()
+    }
+
+    /// The bytes the loaded file takes in memory: the struct and every
+    /// vector it holds (by capacity), names included. What an engine
+    /// budgets for; notes/query.md compares it with the files' sizes.
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of;
+        let objects: usize = self.objects.capacity() * size_of::<FileObject>()
+            + self
+                .objects
+                .iter()
+                .map(|o| o.name.capacity())
+                .sum::<usize>();
+        size_of::<Self>()
+            + self.params.capacity()
+            + objects
+            + self.nodes.capacity() * size_of::<QueryNode>()
+            + self.sets.capacity() * 8
+            + self
+                .records
+                .as_ref()
+                .map_or(0, |r| r.capacity() * size_of::<LeafRecord>())
+            + self.slices.as_ref().map_or(0, TreeSlices::memory_bytes)
+            + self.leaf_rank.capacity() * 4
+            + self.all.capacity() * 8
     }
 
     /// An empty answer set of the right size, to reuse across queries.

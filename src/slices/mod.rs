@@ -70,6 +70,23 @@ pub struct TreeSlices {
 }
 
 impl TreeSlices {
+    /// The heap bytes it holds (its vectors' capacities).
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of;
+        let leaves: usize = self
+            .leaves
+            .iter()
+            .map(|row| {
+                row.capacity() * size_of::<(u32, Vec<SliceIndex>)>()
+                    + row
+                        .iter()
+                        .map(|(_, v)| v.capacity() * size_of::<SliceIndex>())
+                        .sum::<usize>()
+            })
+            .sum();
+        self.sliced.memory_bytes() + self.leaves.capacity() * size_of::<LeafSlices>() + leaves
+    }
+
     /// The indices of object `object`'s pieces in leaf `leaf` (its
     /// preorder rank among the leaves), or `None` when nothing of it is
     /// hidden there.
@@ -182,6 +199,13 @@ pub struct ObjectSlices {
     hi: Vec<[u8; 3]>,
 }
 
+impl ObjectSlices {
+    /// The heap bytes it holds.
+    fn memory_bytes(&self) -> usize {
+        self.triangles.capacity() * 4 + (self.lo.capacity() + self.hi.capacity()) * 3
+    }
+}
+
 /// Every object of a scene, cut into pieces and sliced.
 ///
 /// **Pieces** (papers/004 sec. 6: "a subdivision at the object level
@@ -277,6 +301,25 @@ impl SlicedScene {
     /// Slices an axis.
     pub fn slices(&self) -> usize {
         self.slices
+    }
+
+    /// The heap bytes it holds (its vectors' capacities).
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of;
+        let pieces: usize = self
+            .objects
+            .iter()
+            .map(|o| {
+                o.capacity() * size_of::<ObjectSlices>()
+                    + o.iter().map(ObjectSlices::memory_bytes).sum::<usize>()
+            })
+            .sum();
+        let place: usize = self
+            .place
+            .iter()
+            .map(|p| p.capacity() * size_of::<(u32, u32)>())
+            .sum();
+        pieces + place + (self.objects.capacity() + self.place.capacity()) * size_of::<Vec<()>>()
     }
 
     /// Object `i`'s pieces (one for most objects).

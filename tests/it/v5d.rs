@@ -11,7 +11,7 @@ use vis5d::builder::{BuildParams, build, to_file};
 use vis5d::codec::{self, CodecError, Coding, ReadLimits};
 use vis5d::geom::Aabb;
 use vis5d::geom::cell::{Cell, DIMS, direction_to_angles};
-use vis5d::query::{Answer, Pvs, SetSizeError, View};
+use vis5d::query::{Answer, Delta, Pvs, SetSizeError, View};
 use vis5d::random::{uniform_direction, uniform_point};
 use vis5d::render::Camera;
 use vis5d::scene::{self, Scene};
@@ -581,4 +581,107 @@ fn leaf_records_round_trip_and_lies_are_refused() {
     let none = with_records(&[]).unwrap();
     assert_eq!(none.tree.leaf_records(), None);
     assert_eq!(none.objects.len(), s.objects().len());
+}
+
+/// Prefetch (issue 15, papers/001 sec. 6.1): deltas are the set
+/// differences of the answers, leaf deltas those of the leaf sets, and a
+/// box of positions answers a superset of every view from inside it.
+#[test]
+fn deltas_and_prefetch_answer_as_the_set_differences() {
+    let bytes = file_bytes(None);
+    let pvs = Pvs::from_bytes(&bytes).unwrap();
+    let space = pvs.view_box();
+    let mut rng = Pcg64::seed_from_u64(16);
+    let (mut from, mut to, mut delta) = (pvs.new_set(), pvs.new_set(), pvs.new_delta());
+    let (mut entered, mut left) = (0, 0);
+    for _ in 0..200 {
+        let a = View::look(
+            uniform_point(&mut rng, &space),
+            uniform_direction(&mut rng),
+            Vec3::Z,
+            1.0,
+            1.6,
+        );
+        let b = View {
+            position: a.position + uniform_direction(&mut rng) * 0.3,
+            dir: a.dir + uniform_direction(&mut rng) * 0.2,
+            ..a
+        };
+        pvs.query_view(&a, &mut from).unwrap();
+        pvs.query_view(&b, &mut to).unwrap();
+        pvs.delta(&from, &to, &mut delta).unwrap();
+        let (mut enter, mut leave) = (to.clone(), from.clone());
+        enter.subtract(&from);
+        leave.subtract(&to);
+        assert_eq!((&delta.entering, &delta.leaving), (&enter, &leave));
+        entered += enter.count();
+        left += leave.count();
+    }
+    assert!(entered > 0 && left > 0, "{entered} {left}");
+    // Leaves: the difference of their sets; outside, every object.
+    for _ in 0..200 {
+        let p = |rng: &mut Pcg64| {
+            let q = uniform_point(rng, &space);
+            let (t, ph) = direction_to_angles(uniform_direction(rng));
+            [q.x, q.y, q.z, t, ph]
+        };
+        let (a, b) = (p(&mut rng), p(&mut rng));
+        assert_eq!(pvs.leaf_delta(a, b, &mut delta), Ok(Answer::Tree));
+        let n = pvs.object_count();
+        let set = |p| ObjectSet::from_words(n, pvs.leaf_set(p).0.to_vec()).unwrap();
+        let (mut enter, mut leave) = (set(b), set(a));
+        enter.subtract(&set(a));
+        leave.subtract(&set(b));
+        assert_eq!((&delta.entering, &delta.leaving), (&enter, &leave));
+    }
+    let outside = [space.max.x + 1.0, 0.0, 0.0, 0.0, 1.0];
+    let centre = space.center();
+    let inside = [centre.x, centre.y, centre.z, 0.0, 1.0];
+    assert_eq!(
+        pvs.leaf_delta(inside, outside, &mut delta),
+        Ok(Answer::Everything)
+    );
+    assert!(delta.leaving.is_empty());
+    // A box of positions: every view from inside it answers a subset.
+    let mut ahead = pvs.new_set();
+    for _ in 0..30 {
+        let c = uniform_point(&mut rng, &space);
+        let half = Vec3::new(rng.random(), rng.random(), rng.random()) * 0.5;
+        let b = Aabb::new(c - half, c + half);
+        let clipped = Aabb::new(b.min.max(space.min), b.max.min(space.max));
+        assert_eq!(pvs.query_positions(&clipped, &mut ahead), Ok(Answer::Tree));
+        for _ in 0..30 {
+            let view = View::square(
+                uniform_point(&mut rng, &clipped),
+                uniform_direction(&mut rng),
+                120.0,
+            );
+            pvs.query_view(&view, &mut to).unwrap();
+            assert!(to.is_subset(&ahead));
+        }
+        assert_eq!(
+            pvs.query_positions(
+                &b.union(&Aabb::new(space.max + 1.0, space.max + 1.0)),
+                &mut ahead
+            ),
+            Ok(Answer::Everything)
+        );
+    }
+    // Sets of another size are refused.
+    let mut small = ObjectSet::new(3);
+    assert!(pvs.delta(&from, &small, &mut delta).is_err());
+    assert!(pvs.query_positions(&space, &mut small).is_err());
+    let mut bad = Delta {
+        entering: ObjectSet::new(3),
+        leaving: ObjectSet::new(3),
+    };
+    assert!(pvs.leaf_delta(inside, inside, &mut bad).is_err());
+    // What the loaded file takes in memory.
+    let memory = pvs.memory_bytes();
+    eprintln!(
+        "{} bytes on disk, {memory} in memory ({:.1}x)",
+        bytes.len(),
+        memory as f64 / bytes.len() as f64
+    );
+    assert!(memory > pvs.node_count() * 8);
 }
