@@ -911,7 +911,22 @@ impl Pvs {
         out: &mut ObjectSet,
     ) -> Result<Answer, SetSizeError> {
         self.check_set(out)?;
-        out.clear();
+        self.query_range_words(positions, theta, phi, out.words_mut())
+    }
+
+    /// As [`Pvs::query_range`], into the raw words of a bitset of
+    /// [`Pvs::answer_words`] words (bit `i % 64` of word `i / 64` is
+    /// object `i`): for bindings that own their memory (the C API). An
+    /// error, `out` untouched, for another length.
+    pub fn query_range_words(
+        &self,
+        positions: &Aabb,
+        theta: (f32, f32),
+        phi: (f32, f32),
+        out: &mut [u64],
+    ) -> Result<Answer, SetSizeError> {
+        self.check_words(out)?;
+        out.fill(0);
         Ok(if theta.0 <= theta.1 {
             self.accumulate(positions, theta, phi, out)
         } else {
@@ -919,6 +934,23 @@ impl Pvs {
             let b = self.accumulate(positions, (-PI, theta.1), phi, out);
             a.max(b)
         })
+    }
+
+    /// The number of 64-bit words of an answer's bitset.
+    pub fn answer_words(&self) -> usize {
+        self.words
+    }
+
+    /// `Ok` when `out` has the words of an answer.
+    fn check_words(&self, out: &[u64]) -> Result<(), SetSizeError> {
+        if out.len() == self.words {
+            Ok(())
+        } else {
+            Err(SetSizeError {
+                got: out.len() * 64,
+                expected: self.objects.len(),
+            })
+        }
     }
 
     /// The objects visible from `view` (its position in the tree's frame:
@@ -969,14 +1001,26 @@ impl Pvs {
         out: &mut ObjectSet,
     ) -> Result<Answer, SetSizeError> {
         self.check_set(out)?;
+        self.query_view_from_words(positions, view, out.words_mut())
+    }
+
+    /// As [`Pvs::query_view_from`], into the raw words of a bitset of
+    /// [`Pvs::answer_words`] words (see [`Pvs::query_range_words`]).
+    pub fn query_view_from_words(
+        &self,
+        positions: &Aabb,
+        view: &View,
+        out: &mut [u64],
+    ) -> Result<Answer, SetSizeError> {
+        self.check_words(out)?;
         let answer = self.query_view_unculled(positions, view, out);
         self.cull(&Frustum::new(view, positions), out);
         Ok(answer)
     }
 
     /// Removes from `out` the objects whose bounds `frustum` cannot see.
-    fn cull(&self, frustum: &Frustum, out: &mut ObjectSet) {
-        for (w, word) in out.words_mut().iter_mut().enumerate() {
+    fn cull(&self, frustum: &Frustum, out: &mut [u64]) {
+        for (w, word) in out.iter_mut().enumerate() {
             let mut bits = *word;
             while bits != 0 {
                 let b = bits.trailing_zeros() as usize;
@@ -992,8 +1036,8 @@ impl Pvs {
 
     /// The union of the leaf sets the view's positions and directions
     /// meet, not culled to the frustum.
-    fn query_view_unculled(&self, positions: &Aabb, view: &View, out: &mut ObjectSet) -> Answer {
-        out.clear();
+    fn query_view_unculled(&self, positions: &Aabb, view: &View, out: &mut [u64]) -> Answer {
+        out.fill(0);
         let ranges = frustum_angles(view.dir, view.up, view.fov_x, view.fov_y);
         let mut answer = Answer::Tree;
         for &(t0, t1, p0, p1) in ranges.boxes() {
@@ -1037,22 +1081,21 @@ impl Pvs {
         positions: &Aabb,
         theta: (f32, f32),
         phi: (f32, f32),
-        out: &mut ObjectSet,
+        out: &mut [u64],
     ) -> Answer {
         let range = match self.clip_range(positions, theta, phi) {
             Clipped::Empty => return Answer::Tree,
             Clipped::Everything => {
-                out.union_words(&self.all);
+                for (a, b) in out.iter_mut().zip(&self.all) {
+                    *a |= b;
+                }
                 return Answer::Everything;
             }
             Clipped::Range(range) => range,
         };
         // The node sets are ObjectSet words over the same objects (bits past
         // the capacity 0), so the descent ORs raw words.
-        let mut descent = Descent {
-            range,
-            out: out.words_mut(),
-        };
+        let mut descent = Descent { range, out };
         self.visit(0, self.root, &mut descent);
         Answer::Tree
     }
