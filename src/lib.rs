@@ -111,6 +111,21 @@
 //! - none (`default-features = false`): the runtime side only, free of
 //!   obvhs, rayon, gltf, tobj, statrs and clap.
 
+// Without the builder (or the GPU) the modules named above are not built:
+// their links lead to the features instead.
+#![cfg_attr(
+    not(feature = "builder"),
+    doc = "\n\n[`sprt`]: crate#features\n[`builder`]: crate#features\n\
+           [`conservative`]: crate#features\n[`lazy_grid`]: crate#features\n\
+           [`oracle`]: crate#features\n[`shrink`]: crate#features\n\
+           [`random`]: crate#features\n[`render`]: crate#features\n\
+           [`report`]: crate#features\n[`sample`]: crate#features\n\
+           [`scene`]: crate#features\n[`trace`]: crate#features"
+)]
+#![cfg_attr(
+    not(feature = "gpu"),
+    doc = "\n\n[`oracle::GpuRasteriser`]: crate#features"
+)]
 #![warn(missing_docs)]
 
 pub mod atomic_write;

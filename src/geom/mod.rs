@@ -6,6 +6,10 @@
 //!
 //! Nothing here depends on the builder's crates, so the runtime query side
 //! can use it with `default-features = false`.
+#![cfg_attr(
+    not(feature = "builder"),
+    doc = "\n\n[`polygon`]: crate#features\n[`BoxTree`]: crate#features"
+)]
 
 mod aabb;
 #[cfg(feature = "builder")]

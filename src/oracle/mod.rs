@@ -60,6 +60,7 @@
 //! (reprojection and the sweep), `oracle_gpu.rs` with `oracle_gpu.wgsl` (the GPU rasteriser),
 //! `oracle_raster.rs` (the GPU-or-CPU choice), `oracle_check.rs` (the
 //! cross-check).
+#![cfg_attr(not(feature = "gpu"), doc = "\n\n[`GpuRasteriser`]: crate#features")]
 
 mod oracle_check;
 mod oracle_clusters;

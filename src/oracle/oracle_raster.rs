@@ -52,9 +52,9 @@ impl Rasteriser {
         }
     }
 
-    /// The best there is: the GPU when an adapter opens (see
-    /// [`GpuRasteriser::new`]), else the CPU, with the reason kept in
-    /// [`Rasteriser::cpu_reason`].
+    /// The best there is: the GPU when an adapter opens (with the `gpu`
+    /// feature: `GpuRasteriser::new`), else the CPU, with the reason kept
+    /// in [`Rasteriser::cpu_reason`].
     pub fn best() -> Self {
         #[cfg(feature = "gpu")]
         {
