@@ -117,6 +117,23 @@ enum Vis5dStatus vis5d_view_box(const struct Vis5dPvs *pvs, double *min, double 
 // writable floats.
 enum Vis5dStatus vis5d_up(const struct Vis5dPvs *pvs, float *up);
 
+// The id of object `object`: unique in the file (its name, `name#k`
+// where names repeat, or the id the build's `--ids` gave it);
+// NUL-terminated, valid while the handle lives; null for an index past
+// the count or a null handle.
+//
+// # Safety
+// `pvs` is null or a live handle.
+const char *vis5d_object_id(const struct Vis5dPvs *pvs, size_t object);
+
+// The index of the object whose id is `id` (NUL-terminated UTF-8) into
+// `*object`; `VIS5D_STATUS_BAD_ARGUMENT` when no object has it.
+//
+// # Safety
+// `pvs` is null or a live handle; `id` is null or NUL-terminated;
+// `object` is null or writable.
+enum Vis5dStatus vis5d_object_index(const struct Vis5dPvs *pvs, const char *id, size_t *object);
+
 // The objects a camera may see, into the caller's bitset `set` of
 // `words` words (`vis5d_answer_words`): from `eye` (world coordinates,
 // three doubles) looking along `forward` with `up` (three floats each,

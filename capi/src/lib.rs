@@ -32,6 +32,8 @@ pub struct Vis5dPvs {
     pvs: Pvs,
     /// The objects' names, NUL-terminated (a NUL inside a name ends it).
     names: Vec<CString>,
+    /// The objects' ids, NUL-terminated (ids hold no NUL).
+    ids: Vec<CString>,
 }
 
 /// What a call did.
@@ -111,7 +113,12 @@ fn handle(pvs: Pvs) -> *mut Vis5dPvs {
             CString::new(cut).unwrap_or_default()
         })
         .collect();
-    Box::into_raw(Box::new(Vis5dPvs { pvs, names }))
+    let ids = pvs
+        .objects()
+        .iter()
+        .map(|o| CString::new(o.id.as_str()).unwrap_or_default())
+        .collect();
+    Box::into_raw(Box::new(Vis5dPvs { pvs, names, ids }))
 }
 
 /// The message of the last error on this thread (empty before any): a
@@ -307,6 +314,60 @@ pub unsafe extern "C" fn vis5d_up(pvs: *const Vis5dPvs, up: *mut f32) -> Vis5dSt
             unsafe { *up.add(k) = v[k] };
         }
         Vis5dStatus::Ok
+    })
+}
+
+/// The id of object `object`: unique in the file (its name, `name#k`
+/// where names repeat, or the id the build's `--ids` gave it);
+/// NUL-terminated, valid while the handle lives; null for an index past
+/// the count or a null handle.
+///
+/// # Safety
+/// `pvs` is null or a live handle.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn vis5d_object_id(pvs: *const Vis5dPvs, object: usize) -> *const c_char {
+    // SAFETY: null or live by contract.
+    unsafe { pvs.as_ref() }
+        .and_then(|h| h.ids.get(object))
+        .map_or(std::ptr::null(), |n| n.as_ptr())
+}
+
+/// The index of the object whose id is `id` (NUL-terminated UTF-8) into
+/// `*object`; `VIS5D_STATUS_BAD_ARGUMENT` when no object has it.
+///
+/// # Safety
+/// `pvs` is null or a live handle; `id` is null or NUL-terminated;
+/// `object` is null or writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn vis5d_object_index(
+    pvs: *const Vis5dPvs,
+    id: *const c_char,
+    object: *mut usize,
+) -> Vis5dStatus {
+    guarded(|| {
+        // SAFETY: null or live by contract.
+        let Some(h) = (unsafe { pvs.as_ref() }) else {
+            return fail(Vis5dStatus::NullArgument, "vis5d_object_index: pvs is null");
+        };
+        if id.is_null() || object.is_null() {
+            return fail(
+                Vis5dStatus::NullArgument,
+                "vis5d_object_index: id and object must not be null",
+            );
+        }
+        // SAFETY: NUL-terminated by contract.
+        let text = unsafe { CStr::from_ptr(id) }.to_string_lossy();
+        match h.pvs.object_index(&text) {
+            Some(i) => {
+                // SAFETY: non-null and writable by contract.
+                unsafe { *object = i };
+                Vis5dStatus::Ok
+            }
+            None => fail(
+                Vis5dStatus::BadArgument,
+                format!("vis5d_object_index: no object has the id {text:?}"),
+            ),
+        }
     })
 }
 

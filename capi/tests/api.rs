@@ -177,6 +177,23 @@ fn bad_arguments_are_refused_and_answers_match_the_rust_api() {
         );
         // Names, the view box, the up axis.
         assert!(vis5d_object_name(pvs, n).is_null());
+        assert!(vis5d_object_id(pvs, n).is_null());
+        for o in [0, n / 2, n - 1] {
+            let id = CStr::from_ptr(vis5d_object_id(pvs, o));
+            assert_eq!(id.to_str().unwrap(), rust.objects()[o].id);
+            let mut found = usize::MAX;
+            assert_eq!(
+                vis5d_object_index(pvs, id.as_ptr(), &mut found),
+                Vis5dStatus::Ok
+            );
+            assert_eq!(found, o);
+        }
+        let nobody = CString::new("no such object").unwrap();
+        let mut found = 0;
+        assert_eq!(
+            vis5d_object_index(pvs, nobody.as_ptr(), &mut found),
+            Vis5dStatus::BadArgument
+        );
         let name = CStr::from_ptr(vis5d_object_name(pvs, 0)).to_str().unwrap();
         assert_eq!(name, rust.objects()[0].name);
         let (mut bmin, mut bmax, mut upv) = ([0f64; 3], [0f64; 3], [0f32; 3]);

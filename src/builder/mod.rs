@@ -486,8 +486,12 @@ pub fn file_with_params(
         objects: scene
             .objects()
             .iter()
-            .map(|o| FileObject {
+            .zip(crate::codec::default_ids(
+                scene.objects().iter().map(|o| o.name.as_str()),
+            ))
+            .map(|(o, id)| FileObject {
                 name: o.name.clone(),
+                id,
                 triangles: o.triangle_count() as u32,
                 bounds: Some(o.bounds),
             })

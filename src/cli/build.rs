@@ -240,6 +240,13 @@ pub struct BuildArgs {
     /// distinct box of positions [0 (off) to 127].
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=127))]
     slices: u8,
+    /// The objects' ids, as the engine calls them: a JSON object from
+    /// default ids to ids. An object's default id is its name, or, where
+    /// names repeat, the name and its occurrence in the model (`crate#1`,
+    /// `crate#2`). Ids are stored in the .v5d (`query --json --ids`,
+    /// `Pvs::object_index`); unique, 1 to 1024 bytes, no NUL.
+    #[arg(long, value_name = "IDS.json")]
+    ids: Option<PathBuf>,
 }
 
 impl BuildArgs {
@@ -437,6 +444,7 @@ pub fn run(args: &BuildArgs) -> Result<()> {
         "cache fewer rays or build shallower trees",
     )?;
     let (scene, load_seconds) = load_scene_up(&args.file, args.up)?;
+    let ids = object_ids(args, &scene)?;
     if let Some(local) = local_view_box(args, &scene)? {
         params.view_box = Some(local);
         params
@@ -482,6 +490,7 @@ pub fn run(args: &BuildArgs) -> Result<()> {
     } else {
         let mut file = vis5d::builder::to_file(&scene, tree.clone(), &params, args.coding);
         file.slices = slices.as_ref().map(|(s, _)| s.clone());
+        set_ids(&mut file, ids.as_deref());
         Some(write_tree(&file, &output)?)
     };
     let mut report = build_report(
@@ -528,7 +537,9 @@ fn checked_output(args: &BuildArgs) -> Result<PathBuf> {
         .unwrap_or_else(|| args.file.with_extension("v5d"));
     if !args.dry_run {
         // Fail before the build, not after it.
-        check_output(&output, "tree", &[&args.file])?;
+        let mut inputs = vec![args.file.as_path()];
+        inputs.extend(args.ids.as_deref());
+        check_output(&output, "tree", &inputs)?;
     }
     if args.verify_views > 0 {
         memory::check(
@@ -565,6 +576,36 @@ fn node_budget(scene: &Scene, max_nodes: u64) -> u64 {
 
 /// Writes `file` to `output` atomically, after checking that it decodes
 /// to the same tree.
+/// The objects' ids with `--ids` applied (checked before the build), or
+/// `None` for the default ones.
+fn object_ids(args: &BuildArgs, scene: &vis5d::scene::Scene) -> Result<Option<Vec<String>>> {
+    let Some(path) = &args.ids else {
+        return Ok(None);
+    };
+    let bytes = vis5d::input::read_regular(path, 64 << 20)
+        .with_context(|| format!("{}: cannot read the ids", path.display()))?;
+    let user: std::collections::HashMap<String, String> = serde_json::from_slice(&bytes)
+        .with_context(|| {
+            format!(
+                "{}: expected a JSON object from default ids (names, or name#k where names repeat) to ids",
+                path.display()
+            )
+        })?;
+    let mut ids = codec::default_ids(scene.objects().iter().map(|o| o.name.as_str()));
+    codec::apply_user_ids(&mut ids, &user)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok(Some(ids))
+}
+
+/// Puts `ids` (when given) into the file's object table.
+fn set_ids(file: &mut codec::V5dFile, ids: Option<&[String]>) {
+    if let Some(ids) = ids {
+        for (o, id) in file.objects.iter_mut().zip(ids) {
+            o.id = id.clone();
+        }
+    }
+}
+
 fn write_tree(file: &codec::V5dFile, output: &std::path::Path) -> Result<Written> {
     let bytes = codec::write_file(file);
     // Encode -> decode must be the identity: check before writing.
@@ -642,6 +683,7 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
     params.validate().map_err(bake_flag)?;
     let output = checked_output(args)?;
     let (scene, load_seconds) = load_scene_up(&args.file, args.up)?;
+    let ids = object_ids(args, &scene)?;
     if let Some(local) = local_view_box(args, &scene)? {
         params.view_box = Some(local);
         params
@@ -701,6 +743,7 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
     } else {
         let mut file = vis5d::builder::file_with_params(&scene, tree, text, args.coding);
         file.slices = slices.as_ref().map(|(s, _)| s.clone());
+        set_ids(&mut file, ids.as_deref());
         Some(write_tree(&file, &output)?)
     };
     let b = params.root_box(&scene);

@@ -51,6 +51,11 @@ pub struct QueryArgs {
     /// Print as JSON: a list of names, or with --views a list of lists.
     #[arg(long)]
     json: bool,
+    /// Print the objects' ids instead of their names (unique: the name,
+    /// `name#k` where names repeat, or the build's `--ids`); with --json,
+    /// each object as {"index", "id", "name"}.
+    #[arg(long, conflicts_with = "triangles")]
+    ids: bool,
     /// Also print, per object, the ranges of its triangles to draw
     /// (indices into the object's triangles, in the model's order): those
     /// of the slices not proved hidden, for a file built with --slices;
@@ -58,6 +63,14 @@ pub struct QueryArgs {
     /// "ranges": [[first, end), ...]}.
     #[arg(long)]
     triangles: bool,
+}
+
+/// An object of an answer, for --ids --json.
+#[derive(serde::Serialize)]
+struct IdJson<'a> {
+    index: usize,
+    id: &'a str,
+    name: &'a str,
 }
 
 /// An object's triangles to draw, for --triangles --json.
@@ -203,12 +216,30 @@ pub fn run(args: &QueryArgs) -> Result<()> {
             }
             continue;
         }
-        let names: Vec<&str> = set.iter().map(|o| pvs.objects()[o].name.as_str()).collect();
+        let names: Vec<&str> = set
+            .iter()
+            .map(|o| {
+                let object = &pvs.objects()[o];
+                if args.ids { &object.id } else { &object.name }.as_str()
+            })
+            .collect();
         if args.json {
             if many && i > 0 {
                 write!(out, ",")?;
             }
-            serde_json::to_writer(&mut out, &names)?;
+            if args.ids {
+                let rows: Vec<IdJson> = set
+                    .iter()
+                    .map(|o| IdJson {
+                        index: o,
+                        id: &pvs.objects()[o].id,
+                        name: &pvs.objects()[o].name,
+                    })
+                    .collect();
+                serde_json::to_writer(&mut out, &rows)?;
+            } else {
+                serde_json::to_writer(&mut out, &names)?;
+            }
         } else {
             if many {
                 writeln!(out, "# view {i}: {} objects", names.len())?;

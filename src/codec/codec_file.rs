@@ -44,7 +44,11 @@ const fn fixed_len(version: u16) -> usize {
 /// The fewest bytes an object's entry takes in a file of `version`: its
 /// triangle count, (version 2) its bounds codes, its name's length.
 const fn min_object_len(version: u16) -> usize {
-    if version >= 2 { 4 + 12 + 2 } else { 4 + 2 }
+    match version {
+        5.. => 4 + 12 + 2 + 2,
+        2..=4 => 4 + 12 + 2,
+        _ => 4 + 2,
+    }
 }
 
 /// What follows the object table in a file of `version`, at the least:
@@ -68,6 +72,9 @@ pub const MIN_FILE_LEN: usize = fixed_len(VERSION) + min_tail_len(VERSION) + 4;
 pub struct FileObject {
     /// The object's name in the scene.
     pub name: String,
+    /// Its id, unique in the file ([`super::default_ids`], or one the
+    /// user gave at build time; files before version 5: the default).
+    pub id: String,
     /// Its triangle count (what drawing it costs).
     pub triangles: u32,
     /// Its bounding box in the tree's local coordinates, as stored:
@@ -240,6 +247,19 @@ pub fn write_file(file: &V5dFile) -> Vec<u8> {
         let name = &o.name.as_bytes()[..end];
         out.extend_from_slice(&(name.len() as u16).to_le_bytes());
         out.extend_from_slice(name);
+        // The id: length 0 when it is the name; else at most 65535 bytes,
+        // cut at a character boundary.
+        let id: &[u8] = if o.id == o.name || o.id.as_bytes() == name {
+            &[]
+        } else {
+            let mut end = o.id.len().min(u16::MAX as usize);
+            while !o.id.is_char_boundary(end) {
+                end -= 1;
+            }
+            &o.id.as_bytes()[..end]
+        };
+        out.extend_from_slice(&(id.len() as u16).to_le_bytes());
+        out.extend_from_slice(id);
     }
     let (bits, _) = encode(tree, file.coding);
     out.extend_from_slice(&bits.bit_len().to_le_bytes());
@@ -551,11 +571,37 @@ fn parse_body(body: &[u8], version: u16, limits: ReadLimits) -> Result<V5dFile, 
         let len = c.u16("an object's name length")? as usize;
         let name = std::str::from_utf8(c.take(len, "an object's name")?)
             .map_err(|_| CodecError::Corrupt(format!("object {i}'s name is not UTF-8")))?;
+        let id = if version >= 5 {
+            let len = c.u16("an object's id length")? as usize;
+            let id = std::str::from_utf8(c.take(len, "an object's id")?)
+                .map_err(|_| CodecError::Corrupt(format!("object {i}'s id is not UTF-8")))?;
+            if id.contains('\0') {
+                return Err(CodecError::Corrupt(format!("object {i}'s id holds a NUL")));
+            }
+            if len == 0 { name } else { id }
+        } else {
+            ""
+        };
         table.push(FileObject {
             name: name.to_owned(),
+            id: id.to_owned(),
             triangles,
             bounds,
         });
+    }
+    if version < 5 {
+        let ids = super::default_ids(table.iter().map(|o| o.name.as_str()));
+        for (o, id) in table.iter_mut().zip(ids) {
+            o.id = id;
+        }
+    } else {
+        let mut seen = std::collections::HashSet::with_capacity(table.len());
+        if let Some(o) = table.iter().find(|o| !seen.insert(o.id.as_str())) {
+            return Err(CodecError::Corrupt(format!(
+                "two objects have the id {:?}",
+                o.id
+            )));
+        }
     }
     let bits = c.u64("the tree's bit length")?;
     let tree_bytes = bits.div_ceil(8);
@@ -682,6 +728,7 @@ mod tests {
             params: String::new(),
             objects: vec![FileObject {
                 name: "é".repeat(40_000),
+                id: "é".repeat(40_000),
                 triangles: 1,
                 bounds: None,
             }],
@@ -690,6 +737,7 @@ mod tests {
         };
         let back = read_file(&write_file(&file), ReadLimits::default()).unwrap();
         assert_eq!(back.objects[0].name, "é".repeat(32_767));
+        assert_eq!(back.objects[0].id, back.objects[0].name);
     }
 
     #[test]

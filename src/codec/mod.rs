@@ -6,6 +6,7 @@
 mod codec_bits;
 mod codec_bounds;
 mod codec_file;
+mod codec_ids;
 mod codec_tree;
 
 pub use codec_bits::{BitReader, BitWriter};
@@ -15,6 +16,7 @@ pub use codec_file::{
     read_file, write_file,
 };
 pub(crate) use codec_file::{VarintError, get_varint, put_varint};
+pub use codec_ids::{IdError, MAX_ID_BYTES, apply_user_ids, default_ids};
 pub use codec_tree::{CodeSize, Coding, DecodeLimits, UnknownCoding, code_size, decode, encode};
 
 /// The parameter key that names how a file's tree was made; a file

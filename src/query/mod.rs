@@ -593,6 +593,8 @@ pub struct Pvs {
     slices: Option<TreeSlices>,
     /// Every object's bit: the answer outside the view box.
     all: Vec<u64>,
+    /// The objects in the order of their ids (for [`Pvs::object_index`]).
+    by_id: Vec<u32>,
     /// Per node, its rank among the leaves in preorder (leaves only
     /// meaningful); empty without slices.
     leaf_rank: Vec<u32>,
@@ -628,6 +630,12 @@ impl Pvs {
         let tree = file.tree;
         let (root, grid_bits) = (tree.root_cell(), tree.grid_bits());
         let n_objects = tree.object_count();
+        let mut by_id: Vec<u32> = (0..n_objects as u32).collect();
+        by_id.sort_unstable_by(|&a, &b| {
+            file.objects[a as usize]
+                .id
+                .cmp(&file.objects[b as usize].id)
+        });
         let words = n_objects.div_ceil(64);
         let (tree_nodes, leaf_records) = tree.into_parts();
         let mut leaf_records = leaf_records.map(|r| r.into_iter());
@@ -696,6 +704,7 @@ impl Pvs {
             slices,
             leaf_rank,
             all: ObjectSet::full(n_objects).words().to_vec(),
+            by_id,
         })
     }
 
@@ -708,6 +717,16 @@ impl Pvs {
     /// file stores it (quantised outwards); `None` for a version 1 file.
     pub fn object_bounds(&self, object: usize) -> Option<Aabb> {
         self.objects[object].bounds
+    }
+
+    /// The object whose id is `id` ([`FileObject::id`]: its name, or
+    /// `name#k` where names repeat, or what the build's `--ids` said), by
+    /// binary search; `None` when no object has it.
+    pub fn object_index(&self, id: &str) -> Option<usize> {
+        self.by_id
+            .binary_search_by(|&o| self.objects[o as usize].id.as_str().cmp(id))
+            .ok()
+            .map(|k| self.by_id[k] as usize)
     }
 
     /// The number of objects (the capacity of every answer).
@@ -779,8 +798,9 @@ impl Pvs {
             + self
                 .objects
                 .iter()
-                .map(|o| o.name.capacity())
-                .sum::<usize>();
+                .map(|o| o.name.capacity() + o.id.capacity())
+                .sum::<usize>()
+            + self.by_id.capacity() * 4;
         size_of::<Self>()
             + self.params.capacity()
             + objects

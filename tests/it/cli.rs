@@ -342,3 +342,101 @@ fn query_and_stat_refuse_bad_input() {
         text(&out.stderr)
     );
 }
+
+/// Stable ids (issue 15): repeated names get their occurrence, `--ids`
+/// replaces default ids by the engine's, `query --ids` and
+/// `Pvs::object_index` use them, and bad id files are refused by name.
+#[test]
+fn objects_have_stable_ids() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("crates.obj");
+    let mut obj = String::new();
+    let mut v = 0;
+    for (name, x) in [
+        ("floor", 0.0),
+        ("crate", 2.0),
+        ("crate", 4.0),
+        ("lamp", 6.0),
+    ] {
+        obj.push_str(&format!("o {name}\n"));
+        for (dx, dy) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+            obj.push_str(&format!("v {} {} 0\n", x + dx, dy));
+        }
+        obj.push_str(&format!(
+            "f {} {} {}\nf {} {} {}\n",
+            v + 1,
+            v + 2,
+            v + 3,
+            v + 1,
+            v + 3,
+            v + 4
+        ));
+        v += 4;
+    }
+    std::fs::write(&model, obj).unwrap();
+    let ids = dir.path().join("ids.json");
+    std::fs::write(&ids, r#"{"crate#2": "crate-blue", "lamp": "L-17"}"#).unwrap();
+    let out = dir.path().join("crates.v5d");
+    let (m, o, i) = (
+        model.to_str().unwrap(),
+        out.to_str().unwrap(),
+        ids.to_str().unwrap(),
+    );
+    let built = vis5d(&["build", m, "-o", o, "--ids", i, "--max-depth", "4"]);
+    assert!(built.status.success(), "{}", text(&built.stderr));
+    let pvs = vis5d::query::Pvs::load(&out).unwrap();
+    let got: Vec<&str> = pvs.objects().iter().map(|o| o.id.as_str()).collect();
+    assert_eq!(got, ["floor", "crate#1", "crate-blue", "L-17"]);
+    assert_eq!(pvs.object_index("crate-blue"), Some(2));
+    assert_eq!(pvs.object_index("crate#2"), None);
+    // From above, looking down: every object.
+    let args = [
+        "query",
+        o,
+        "--pos",
+        "3.5,0.5,5",
+        "--dir",
+        "0,0,-1",
+        "--fov",
+        "150",
+    ];
+    let q = vis5d(&[&args[..], &["--json", "--ids"]].concat());
+    assert!(q.status.success(), "{}", text(&q.stderr));
+    let rows: serde_json::Value = serde_json::from_slice(&q.stdout).unwrap();
+    assert_eq!(rows[2]["id"], "crate-blue");
+    assert_eq!(rows[2]["name"], "crate");
+    assert_eq!(rows[2]["index"], 2);
+    // Plain --json keeps its list of names.
+    let q = vis5d(&[&args[..], &["--json"]].concat());
+    let names: Vec<String> = serde_json::from_slice(&q.stdout).unwrap();
+    assert_eq!(names, ["floor", "crate", "crate", "lamp"]);
+    // Without --ids, the defaults.
+    let plain = dir.path().join("plain.v5d");
+    let built = vis5d(&[
+        "build",
+        m,
+        "-o",
+        plain.to_str().unwrap(),
+        "--max-depth",
+        "4",
+    ]);
+    assert!(built.status.success(), "{}", text(&built.stderr));
+    let pvs = vis5d::query::Pvs::load(&plain).unwrap();
+    let got: Vec<&str> = pvs.objects().iter().map(|o| o.id.as_str()).collect();
+    assert_eq!(got, ["floor", "crate#1", "crate#2", "lamp"]);
+    // Bad id files: refused before the build, naming the file.
+    for (content, says) in [
+        (r#"{"crate": "x"}"#, "no object has the id"),
+        (r#"{"floor": "crate#1"}"#, "two objects would have the id"),
+        (r#"{"floor": ""}"#, "empty"),
+        (r#"["floor"]"#, "expected a JSON object"),
+    ] {
+        std::fs::write(&ids, content).unwrap();
+        let bad = vis5d(&["build", m, "-o", o, "--ids", i, "--max-depth", "4"]);
+        let err = text(&bad.stderr);
+        assert!(
+            !bad.status.success() && err.contains(says) && err.contains("ids.json"),
+            "{content}: {err}"
+        );
+    }
+}

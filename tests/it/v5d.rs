@@ -519,10 +519,10 @@ fn leaf_records_round_trip_and_lies_are_refused() {
         .map(|r| varint_len(r.rejected) + varint_len(r.fewest_rays) + varint_len(r.undecided))
         .sum::<usize>();
     assert_eq!(good[good.len() - 8..good.len() - 4], [0; 4], "no slices");
-    // Before version 5 no up axis: the byte after the frame origin goes
-    // (2: +z).
-    let mut pre5 = good[..good.len() - 4].to_vec();
-    assert_eq!(pre5.remove(96), 2, "the up axis");
+    // Before version 5 no up axis (the byte after the frame origin, 2:
+    // +z) and no id lengths in the object table (0 here: every id is its
+    // name).
+    let pre5 = before_version_5(&good[..good.len() - 4], pvs.object_count());
     let mut v4 = pre5.clone();
     v4[8..10].copy_from_slice(&4u16.to_le_bytes());
     let crc = codec::crc32(&v4);
@@ -684,4 +684,47 @@ fn deltas_and_prefetch_answer_as_the_set_differences() {
         memory as f64 / bytes.len() as f64
     );
     assert!(memory > pvs.node_count() * 8);
+}
+
+/// Ids in the file (version 5): two objects with one id are refused; the
+/// builder writes the default ids.
+#[test]
+fn ids_are_unique_in_a_file_and_default_before_version_5() {
+    let (s, _, tree) = apartment();
+    let mut file = to_file(s, tree.clone(), &BuildParams::default(), None);
+    file.objects[1].id = file.objects[0].id.clone();
+    let err = codec::read_file(&codec::write_file(&file), ReadLimits::default()).unwrap_err();
+    assert!(
+        matches!(&err, CodecError::Corrupt(m) if m.contains("two objects have the id")),
+        "{err}"
+    );
+    // The builder's ids are the default ones (files before version 5 get
+    // them too: `leaf_records_round_trip_and_lies_are_refused`).
+    let good = file_bytes(None);
+    let v5 = codec::read_file(&good, ReadLimits::default()).unwrap();
+    let names: Vec<&str> = v5.objects.iter().map(|o| o.name.as_str()).collect();
+    assert_eq!(
+        v5.objects.iter().map(|o| o.id.clone()).collect::<Vec<_>>(),
+        codec::default_ids(names)
+    );
+}
+
+/// A version 5 file's body (no checksum) as version 4 lays it out: the up
+/// byte (+z) and the objects' id lengths (each 0: ids equal to names) cut.
+fn before_version_5(v5: &[u8], objects: usize) -> Vec<u8> {
+    let u16_at = |b: &[u8], k: usize| u16::from_le_bytes([b[k], b[k + 1]]) as usize;
+    let mut out = v5.to_vec();
+    assert_eq!(out.remove(96), 2, "the up axis");
+    // The parameters' length at 120 (after the bounds grid), then the
+    // table: u32 triangles, 6 x u16 bounds, u16 name length, the name,
+    // u16 id length.
+    let params = u32::from_le_bytes(out[120..124].try_into().unwrap()) as usize;
+    let mut k = 124 + params;
+    for _ in 0..objects {
+        k += 4 + 12;
+        k += 2 + u16_at(&out, k);
+        assert_eq!(u16_at(&out, k), 0, "an id other than the name");
+        out.drain(k..k + 2);
+    }
+    out
 }
