@@ -90,8 +90,10 @@ int main(int argc, char **argv) {
     printf("vis5d %s: %s: %zu objects, view box (%g, %g, %g) .. (%g, %g, %g), up (%g, %g, %g)\n",
            vis5d_version(), argv[1], objects, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], up[0], up[1],
            up[2]);
-    uint64_t *a = calloc(words, 8), *b = calloc(words, 8), *enter = calloc(words, 8),
-             *leave = calloc(words, 8);
+    /* At least one word each: calloc(0) may give NULL. */
+    size_t alloc_words = words ? words : 1;
+    uint64_t *a = calloc(alloc_words, 8), *b = calloc(alloc_words, 8),
+             *enter = calloc(alloc_words, 8), *leave = calloc(alloc_words, 8);
     int ok = a && b && enter && leave;
     double eye[3];
     for (int k = 0; k < 3; k++) eye[k] = 0.5 * (lo[k] + hi[k]);

@@ -574,8 +574,6 @@ fn node_budget(scene: &Scene, max_nodes: u64) -> u64 {
     max_nodes.min(by_memory.max(1))
 }
 
-/// Writes `file` to `output` atomically, after checking that it decodes
-/// to the same tree.
 /// The objects' ids with `--ids` applied (checked before the build), or
 /// `None` for the default ones.
 fn object_ids(args: &BuildArgs, scene: &vis5d::scene::Scene) -> Result<Option<Vec<String>>> {
@@ -606,6 +604,8 @@ fn set_ids(file: &mut codec::V5dFile, ids: Option<&[String]>) {
     }
 }
 
+/// Writes `file` to `output` atomically, after checking that it decodes
+/// to the same tree.
 fn write_tree(file: &codec::V5dFile, output: &std::path::Path) -> Result<Written> {
     let bytes = codec::write_file(file);
     // Encode -> decode must be the identity: check before writing.

@@ -186,7 +186,8 @@ pub enum Method {
 
 #[derive(Serialize)]
 struct PlaneJson {
-    face: &'static str,
+    /// The face in world axes ("+x", "-y", ...).
+    face: String,
     position: f64,
     occluders: usize,
     slices: usize,
@@ -407,20 +408,24 @@ pub fn run(args: &OracleArgs) -> Result<()> {
         planes: report
             .planes
             .iter()
-            .map(|p| PlaneJson {
-                face: p.face,
-                // World coordinates: the frame's origin along the face's
-                // axis added.
-                position: p.position
-                    + match p.face.as_bytes().get(1) {
-                        Some(b'x') => frame.origin.x,
-                        Some(b'y') => frame.origin.y,
-                        _ => frame.origin.z,
-                    },
-                occluders: p.occluders,
-                slices: p.slices,
-                filled_pixels: p.filled,
-                hidden: p.hidden,
+            .map(|p| {
+                // The face's local axis, as a world axis (`--up` turns
+                // them), and the position in world coordinates: the
+                // frame's origin along it added.
+                let local = match p.face.as_bytes().get(1) {
+                    Some(b'x') => 0,
+                    Some(b'y') => 1,
+                    _ => 2,
+                };
+                let world = frame.up.world_axis(local);
+                PlaneJson {
+                    face: format!("{}{}", &p.face[..1], ["x", "y", "z"][world]),
+                    position: p.position + frame.origin[world],
+                    occluders: p.occluders,
+                    slices: p.slices,
+                    filled_pixels: p.filled,
+                    hidden: p.hidden,
+                }
             })
             .collect(),
         sweep_planes: report.sweep_planes,

@@ -143,7 +143,7 @@ pub fn write(dir: &Path, page: &Page) -> Result<Vec<(&'static str, MethodSummary
             .zip(&e.truths)
             .map(|(v, t)| TruthJson {
                 pos: World(scene.frame(), v.position),
-                dir: v.dir.to_array(),
+                dir: scene.frame().dir_to_world(v.dir).to_array(),
                 fov_degrees: v.fov_y.to_degrees(),
                 seen_objects: t.seen.len(),
                 hit_pixels: t.hit_pixels,

@@ -35,7 +35,8 @@ struct StatReport {
     fingerprint: String,
     /// "sampled" or "conservative".
     method: &'static str,
-    /// In the tree's local coordinates: world = local + `frame_origin`.
+    /// In the tree's local coordinates: world = P^-1(local) +
+    /// `frame_origin`, P the turn that puts the `up` axis on local z.
     root_cell: [[f32; 5]; 2],
     frame_origin: [f64; 3],
     /// The scene's up axis (local z), "x", "y" or "z".

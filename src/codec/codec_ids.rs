@@ -17,9 +17,14 @@ pub const MAX_ID_BYTES: usize = 1024;
 
 /// The default ids of objects named `names`, in order: the name when it is
 /// unique, else `name#k` for its k-th occurrence (from 1), with more `#`
-/// when that is taken. Unique.
+/// when that is taken; a NUL in a name becomes U+FFFD in its id (ids hold
+/// no NUL, for C). Unique.
 pub fn default_ids<'a>(names: impl IntoIterator<Item = &'a str>) -> Vec<String> {
-    let names: Vec<&str> = names.into_iter().collect();
+    let owned: Vec<String> = names
+        .into_iter()
+        .map(|n| n.replace('\0', "\u{FFFD}"))
+        .collect();
+    let names: Vec<&str> = owned.iter().map(String::as_str).collect();
     let mut count: HashMap<&str, usize> = HashMap::new();
     for n in &names {
         *count.entry(n).or_default() += 1;
@@ -105,6 +110,7 @@ mod tests {
 
     #[test]
     fn repeated_names_get_their_occurrence_and_user_ids_replace_defaults() {
+        assert_eq!(default_ids(["a\0b"]), ["a\u{FFFD}b"]);
         let ids = default_ids(["floor", "crate", "crate", "crate#1", "lamp"]);
         assert_eq!(ids, ["floor", "crate##1", "crate#2", "crate#1", "lamp"]);
         let mut ids = default_ids(["floor", "crate", "crate"]);

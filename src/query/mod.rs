@@ -112,12 +112,13 @@ pub enum Answer {
 /// with [`Pvs::new_set`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 #[error(
-    "the answer set holds {got} objects but the .v5d file has {expected}: make it with Pvs::new_set"
+    "the answer set holds {got} objects but the .v5d file's answers {expected}: make it with Pvs::new_set"
 )]
 pub struct SetSizeError {
-    /// The set's capacity.
+    /// The set's capacity (for raw words, 64 a word).
     pub got: usize,
-    /// The file's object count.
+    /// The file's object count (for raw words, 64 times
+    /// [`Pvs::answer_words`]).
     pub expected: usize,
 }
 
@@ -174,9 +175,10 @@ impl View {
     /// world`, column vectors, glam's column-major [`Mat4`]): any depth
     /// convention (OpenGL's -1..1, Vulkan's and Direct3D's 0..1, reversed
     /// or infinite), right- or left-handed, y up or down, and off-centre
-    /// projections (VR, jittered): the smallest symmetric frustum around
-    /// the eye that holds the four edge rays of the matrix's (whatever its
-    /// near and far planes: objects beyond the far plane are kept).
+    /// projections (VR, jittered): a symmetric frustum around the ray
+    /// through the middle of the image, just wide enough to hold the four
+    /// edge rays of the matrix's (whatever its near and far planes:
+    /// objects beyond the far plane are kept).
     /// `None` for a matrix that is not a perspective projection (no eye,
     /// an orthographic one, not finite) or whose frustum no symmetric one
     /// under 180 degrees holds.
@@ -264,9 +266,11 @@ impl View {
     }
 
     /// A view with a square field of view of `fov_degrees`, up = +z (+y
-    /// when `dir` is vertical), from the point `position`. A square
-    /// frustum is the same whichever way it is rolled by a right angle,
-    /// so this suits any up axis; use [`View::look`] for any other.
+    /// when `dir` is vertical), from the point `position`. Its roll is
+    /// that of a +z-up camera: an engine whose up is another axis, or
+    /// whose viewport is not square, gives its own up with [`View::look`]
+    /// (a square frustum rolled by another angle than a right one is
+    /// another frustum).
     pub fn square(position: Vec3, dir: Vec3, fov_degrees: f32) -> Self {
         let n = dir.normalize_or_zero();
         let up = if n.z.abs() > 0.999 { Vec3::Y } else { Vec3::Z };
@@ -968,7 +972,7 @@ impl Pvs {
         } else {
             Err(SetSizeError {
                 got: out.len() * 64,
-                expected: self.objects.len(),
+                expected: self.words * 64,
             })
         }
     }
