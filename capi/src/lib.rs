@@ -402,6 +402,58 @@ unsafe fn answer_slice<'a>(
     Ok(unsafe { std::slice::from_raw_parts_mut(set, words) })
 }
 
+/// Runs `query` into the caller's bitset (checked against the file) and
+/// says how it answered.
+///
+/// # Safety
+/// `set` is non-null and points to `words` writable words; `answer` is
+/// null or writable.
+unsafe fn answer_into(
+    h: &Vis5dPvs,
+    set: *mut u64,
+    words: usize,
+    answer: *mut Vis5dAnswer,
+    query: impl FnOnce(&Pvs, &mut [u64]) -> Result<Answer, vis5d::query::SetSizeError>,
+) -> Vis5dStatus {
+    // SAFETY: by the caller's contract.
+    let out = match unsafe { answer_slice(h, set, words) } {
+        Ok(out) => out,
+        Err(status) => return status,
+    };
+    match query(&h.pvs, out) {
+        Ok(a) => {
+            // SAFETY: null or writable by the caller's contract.
+            unsafe { tell(answer, a) };
+            Vis5dStatus::Ok
+        }
+        Err(e) => fail(Vis5dStatus::SetSize, e.to_string()),
+    }
+}
+
+/// The world view `view` from the world eye `eye`, answered into the
+/// caller's bitset.
+///
+/// # Safety
+/// As [`answer_into`].
+unsafe fn view_into(
+    h: &Vis5dPvs,
+    eye: DVec3,
+    view: &View,
+    set: *mut u64,
+    words: usize,
+    answer: *mut Vis5dAnswer,
+) -> Vis5dStatus {
+    let frame = h.pvs.frame();
+    let positions = frame.box_to_local(eye, eye);
+    let local = view.to_local(&frame, eye);
+    // SAFETY: by the caller's contract.
+    unsafe {
+        answer_into(h, set, words, answer, |pvs, out| {
+            pvs.query_view_from_words(&positions, &local, out)
+        })
+    }
+}
+
 /// Writes `answer` where the caller asked for it.
 ///
 /// # Safety
@@ -479,21 +531,9 @@ pub unsafe extern "C" fn vis5d_query_camera(
             );
         }
         // SAFETY: `words` writable words by contract.
-        let out = match unsafe { answer_slice(h, set, words) } {
-            Ok(out) => out,
-            Err(status) => return status,
-        };
-        let frame = h.pvs.frame();
-        let positions = frame.box_to_local(eye, eye);
-        let local = view.to_local(&frame, eye);
-        match h.pvs.query_view_from_words(&positions, &local, out) {
-            Ok(a) => {
-                // SAFETY: null or writable by contract.
-                unsafe { tell(answer, a) };
-                Vis5dStatus::Ok
-            }
-            Err(e) => fail(Vis5dStatus::SetSize, e.to_string()),
-        }
+        // SAFETY: `words` writable words and `answer` null or writable,
+        // by contract.
+        unsafe { view_into(h, eye, &view, set, words, answer) }
     })
 }
 
@@ -537,22 +577,9 @@ pub unsafe extern "C" fn vis5d_query_matrix(
             );
         };
         // SAFETY: `words` writable words by contract.
-        let out = match unsafe { answer_slice(h, set, words) } {
-            Ok(out) => out,
-            Err(status) => return status,
-        };
-        let frame = h.pvs.frame();
-        let eye = view.position.as_dvec3();
-        let positions = frame.box_to_local(eye, eye);
-        let local = view.to_local(&frame, eye);
-        match h.pvs.query_view_from_words(&positions, &local, out) {
-            Ok(a) => {
-                // SAFETY: null or writable by contract.
-                unsafe { tell(answer, a) };
-                Vis5dStatus::Ok
-            }
-            Err(e) => fail(Vis5dStatus::SetSize, e.to_string()),
-        }
+        // SAFETY: `words` writable words and `answer` null or writable,
+        // by contract.
+        unsafe { view_into(h, view.position.as_dvec3(), &view, set, words, answer) }
     })
 }
 
@@ -594,19 +621,14 @@ pub unsafe extern "C" fn vis5d_query_box(
             );
         }
         // SAFETY: `words` writable words by contract.
-        let out = match unsafe { answer_slice(h, set, words) } {
-            Ok(out) => out,
-            Err(status) => return status,
-        };
         let local = h.pvs.frame().box_to_local(lo, hi);
         let pi = std::f32::consts::PI;
-        match h.pvs.query_range_words(&local, (-pi, pi), (0.0, pi), out) {
-            Ok(a) => {
-                // SAFETY: null or writable by contract.
-                unsafe { tell(answer, a) };
-                Vis5dStatus::Ok
-            }
-            Err(e) => fail(Vis5dStatus::SetSize, e.to_string()),
+        // SAFETY: `words` writable words and `answer` null or writable,
+        // by contract.
+        unsafe {
+            answer_into(h, set, words, answer, |pvs, out| {
+                pvs.query_range_words(&local, (-pi, pi), (0.0, pi), out)
+            })
         }
     })
 }
