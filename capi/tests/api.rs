@@ -6,17 +6,7 @@ use std::ptr;
 
 use vis5d_c::*;
 
-fn small_file() -> Vec<u8> {
-    use vis5d::scene::procedural::{SceneKind, generate};
-    let scene = generate(SceneKind::Apartment, 1, 1);
-    let tracer = vis5d::trace::Tracer::new(&scene);
-    let params = vis5d::builder::BuildParams {
-        max_depth: 6,
-        ..Default::default()
-    };
-    let (tree, _) = vis5d::builder::build(&scene, &tracer, &params, &|_| {}).unwrap();
-    vis5d::codec::write_file(&vis5d::builder::to_file(&scene, tree, &params, None))
-}
+mod common;
 
 fn last_error() -> String {
     // SAFETY: never null, NUL-terminated.
@@ -27,7 +17,7 @@ fn last_error() -> String {
 
 #[test]
 fn bad_arguments_are_refused_and_answers_match_the_rust_api() {
-    let bytes = small_file();
+    let bytes = common::small_file(6);
     let mut pvs = ptr::null_mut();
     // SAFETY: valid pointers throughout; the handle is freed once.
     unsafe {

@@ -8,6 +8,8 @@ use std::process::Command;
 use glam::Vec3;
 use vis5d::query::{Pvs, View};
 
+mod common;
+
 /// The folder cargo put libvis5d_c in (`target/<profile>`): two up from
 /// this test's executable (`target/<profile>/deps/...`).
 fn library_dir() -> PathBuf {
@@ -19,15 +21,7 @@ fn library_dir() -> PathBuf {
 fn the_c_example_compiles_runs_and_agrees_with_rust() {
     let dir = tempfile::tempdir().unwrap();
     // A small tree of the procedural apartment.
-    use vis5d::scene::procedural::{SceneKind, generate};
-    let scene = generate(SceneKind::Apartment, 1, 1);
-    let tracer = vis5d::trace::Tracer::new(&scene);
-    let params = vis5d::builder::BuildParams {
-        max_depth: 8,
-        ..Default::default()
-    };
-    let (tree, _) = vis5d::builder::build(&scene, &tracer, &params, &|_| {}).unwrap();
-    let bytes = vis5d::codec::write_file(&vis5d::builder::to_file(&scene, tree, &params, None));
+    let bytes = common::small_file(8);
     let file = dir.path().join("apartment.v5d");
     std::fs::write(&file, &bytes).unwrap();
 

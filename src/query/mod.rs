@@ -254,6 +254,13 @@ impl View {
         })
     }
 
+    /// The box of eyes: `position`, `radius` around it (in the view's
+    /// own coordinates).
+    pub(crate) fn eyes(&self) -> Aabb {
+        let r = Vec3::splat(self.radius.max(0.0));
+        Aabb::new(self.position - r, self.position + r)
+    }
+
     /// The same view with its position, direction and up turned from world
     /// coordinates into `frame`'s (the eye at the nearest local point).
     pub fn to_local(&self, frame: &Frame, eye: DVec3) -> Self {
@@ -935,7 +942,7 @@ impl Pvs {
         out: &mut ObjectSet,
     ) -> Result<Answer, SetSizeError> {
         self.check_set(out)?;
-        self.query_range_words(positions, theta, phi, out.words_mut())
+        Ok(self.range_into(positions, theta, phi, out.words_mut()))
     }
 
     /// As [`Pvs::query_range`], into the raw words of a bitset of
@@ -950,14 +957,26 @@ impl Pvs {
         out: &mut [u64],
     ) -> Result<Answer, SetSizeError> {
         self.check_words(out)?;
+        Ok(self.range_into(positions, theta, phi, out))
+    }
+
+    /// The range query into `out` (of the file's size, checked by the
+    /// caller).
+    fn range_into(
+        &self,
+        positions: &Aabb,
+        theta: (f32, f32),
+        phi: (f32, f32),
+        out: &mut [u64],
+    ) -> Answer {
         out.fill(0);
-        Ok(if theta.0 <= theta.1 {
+        if theta.0 <= theta.1 {
             self.accumulate(positions, theta, phi, out)
         } else {
             let a = self.accumulate(positions, (theta.0, PI), phi, out);
             let b = self.accumulate(positions, (-PI, theta.1), phi, out);
             a.max(b)
-        })
+        }
     }
 
     /// The number of 64-bit words of an answer's bitset.
@@ -985,12 +1004,7 @@ impl Pvs {
     /// from outside the view box; an error, `out` untouched, when `out` is
     /// not of the file's size.
     pub fn query_view(&self, view: &View, out: &mut ObjectSet) -> Result<Answer, SetSizeError> {
-        let r = view.radius.max(0.0);
-        let positions = Aabb::new(
-            view.position - Vec3::splat(r),
-            view.position + Vec3::splat(r),
-        );
-        self.query_view_from(&positions, view, out)
+        self.query_view_from(&view.eyes(), view, out)
     }
 
     /// As [`Pvs::query_view`], with the eye at `eye` in f64 world
@@ -1025,7 +1039,7 @@ impl Pvs {
         out: &mut ObjectSet,
     ) -> Result<Answer, SetSizeError> {
         self.check_set(out)?;
-        self.query_view_from_words(positions, view, out.words_mut())
+        Ok(self.view_into(positions, view, out.words_mut()))
     }
 
     /// As [`Pvs::query_view_from`], into the raw words of a bitset of
@@ -1037,9 +1051,15 @@ impl Pvs {
         out: &mut [u64],
     ) -> Result<Answer, SetSizeError> {
         self.check_words(out)?;
+        Ok(self.view_into(positions, view, out))
+    }
+
+    /// The view query into `out` (of the file's size, checked by the
+    /// caller): the leaf sets met, culled to the frustum.
+    fn view_into(&self, positions: &Aabb, view: &View, out: &mut [u64]) -> Answer {
         let answer = self.query_view_unculled(positions, view, out);
         self.cull(&Frustum::new(view, positions), out);
-        Ok(answer)
+        answer
     }
 
     /// Removes from `out` the objects whose bounds `frustum` cannot see.

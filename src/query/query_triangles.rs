@@ -12,7 +12,7 @@
 use std::f32::consts::PI;
 use std::ops::Range;
 
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 
 use super::{Clipped, LEAF, Pvs, SetSizeError, View, frustum_angles};
 use crate::bitset::ObjectSet;
@@ -71,13 +71,8 @@ impl Pvs {
         out: &mut ObjectSet,
     ) -> Result<Vec<ObjectTriangles>, SetSizeError> {
         self.query_view(view, out)?;
-        let r = view.radius.max(0.0);
-        let positions = Aabb::new(
-            view.position - Vec3::splat(r),
-            view.position + Vec3::splat(r),
-        );
         let ranges = frustum_angles(view.dir, view.up, view.fov_x, view.fov_y);
-        self.triangles_of(&positions, ranges.boxes(), out)
+        self.triangles_of(&view.eyes(), ranges.boxes(), out)
     }
 
     /// [`Pvs::query_view_world`] (the objects, into `out`), and per
