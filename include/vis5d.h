@@ -11,6 +11,13 @@
 #include <stdint.h>
 #include <stdlib.h>
 
+// Object flag: in every set of the tree (a sky, what must never be
+// culled; `vis5d build --flags`).
+#define VIS5D_FLAG_ALWAYS_VISIBLE 1
+
+// Object flag: hides nothing, rays pass through it (glass, foliage).
+#define VIS5D_FLAG_NEVER_OCCLUDER 2
+
 // What a call did.
 typedef enum Vis5dStatus {
   // Done.
@@ -125,6 +132,14 @@ enum Vis5dStatus vis5d_up(const struct Vis5dPvs *pvs, float *up);
 // # Safety
 // `pvs` is null or a live handle.
 const char *vis5d_object_id(const struct Vis5dPvs *pvs, size_t object);
+
+// The flags of object `object` as the build set them: a combination of
+// `VIS5D_FLAG_ALWAYS_VISIBLE` and `VIS5D_FLAG_NEVER_OCCLUDER`; 0 for
+// none, for an index past the count or for a null handle.
+//
+// # Safety
+// `pvs` is null or a live handle.
+uint8_t vis5d_object_flags(const struct Vis5dPvs *pvs, size_t object);
 
 // The index of the object whose id is `id` (NUL-terminated UTF-8) into
 // `*object`; `VIS5D_STATUS_BAD_ARGUMENT` when no object has it.

@@ -281,6 +281,10 @@ fn to_bvh_triangle(t: &Triangle) -> BvhTriangle {
     }
 }
 
+/// No target: [`Tracer::closest_hit_towards`] with it is
+/// [`Tracer::closest_hit`].
+pub const NO_TARGET: u32 = u32::MAX;
+
 /// A BVH over a scene's triangles, answering closest-hit queries. Tracing
 /// takes `&self` and is safe from many threads at once.
 pub struct Tracer {
@@ -291,6 +295,10 @@ pub struct Tracer {
     ids: Vec<u32>,
     /// For each triangle in scene order, its object.
     tri_object: Vec<u32>,
+    /// Per object, whether rays pass through it
+    /// ([`crate::scene::ObjectFlags::NEVER_OCCLUDER`]); `None` when every
+    /// object occludes (the fast path).
+    see_through: Option<Vec<bool>>,
     /// See [`ScaledRay`].
     dir_exponent: i32,
     build_time: Duration,
@@ -333,11 +341,19 @@ impl Tracer {
         for (o, obj) in scene.objects().iter().enumerate() {
             tri_object[obj.triangles.start as usize..obj.triangles.end as usize].fill(o as u32);
         }
+        let see_through = (!scene.all_occlude()).then(|| {
+            scene
+                .objects()
+                .iter()
+                .map(|o| !o.flags.occludes())
+                .collect()
+        });
         Self {
             bvh,
             tris,
             ids,
             tri_object,
+            see_through,
             dir_exponent: direction_exponent(b),
             build_time: start.elapsed(),
         }
@@ -353,9 +369,21 @@ impl Tracer {
         self.tris.len()
     }
 
-    /// The closest hit of `ray` in `[tmin, tmax]`, or `None` when it hits
-    /// nothing there (or is not [valid](Ray::is_valid)).
+    /// The closest hit of `ray` in `[tmin, tmax]` on an object that
+    /// occludes, or `None` when it hits none there (or is not
+    /// [valid](Ray::is_valid)). Objects flagged
+    /// [`NEVER_OCCLUDER`](crate::scene::ObjectFlags::NEVER_OCCLUDER) are
+    /// passed through: see [`Tracer::closest_hit_towards`] and
+    /// [`Tracer::seen_along`] for what sees them.
     pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        self.closest_hit_towards(ray, NO_TARGET)
+    }
+
+    /// The closest hit of `ray` on an object that occludes or on object
+    /// `target` (which may not occlude): what a segment aimed at a point of
+    /// `target` meets first. The same as [`Tracer::closest_hit`] for an
+    /// object that occludes.
+    pub fn closest_hit_towards(&self, ray: &Ray, target: u32) -> Option<Hit> {
         if !ray.is_valid() {
             return None;
         }
@@ -365,6 +393,10 @@ impl Tracer {
         let mut hit = RayHit::none();
         let shear = Shear::new(&scaled.ray);
         self.bvh.ray_traverse(scaled.ray, &mut hit, |r, i| {
+            if self.passes_through(self.ids[i], target) {
+                // Not narrowed: obvhs keeps tmax for an infinite answer.
+                return f32::INFINITY;
+            }
             let t = shear.intersect(&self.tris[i], r.tmin, r.tmax);
             if t < f32::INFINITY && (t < best_t || (t == best_t && self.ids[i] < best)) {
                 best_t = t;
@@ -380,6 +412,67 @@ impl Tracer {
             triangle: best,
             t: best_t * scaled.t_factor,
         })
+    }
+
+    /// Whether rays aimed at `target` pass through scene triangle
+    /// `triangle`: it belongs to another object that does not occlude.
+    #[inline]
+    fn passes_through(&self, triangle: u32, target: u32) -> bool {
+        self.see_through.as_ref().is_some_and(|st| {
+            let o = self.tri_object[triangle as usize];
+            o != target && st[o as usize]
+        })
+    }
+
+    /// Every object `ray` sees, into `out` (cleared first, then in no
+    /// particular order, each once): the object of its closest hit on an
+    /// occluder, and every object that does not occlude and that the ray
+    /// meets before that hit (or anywhere, when it hits no occluder). The
+    /// ray truth of a scene with objects flagged
+    /// [`NEVER_OCCLUDER`](crate::scene::ObjectFlags::NEVER_OCCLUDER); the
+    /// closest hit alone where every object occludes.
+    pub fn seen_along(&self, ray: &Ray, out: &mut Vec<u32>) {
+        out.clear();
+        if !ray.is_valid() {
+            return;
+        }
+        let Some(see_through) = &self.see_through else {
+            out.extend(self.closest_hit(ray).map(|h| h.object));
+            return;
+        };
+        let scaled = ScaledRay::new(ray, self.dir_exponent);
+        let mut best_t = f32::INFINITY;
+        let mut best = u32::MAX;
+        // (object, t) of the see-through hits.
+        let mut through: Vec<(u32, f32)> = Vec::new();
+        let mut hit = RayHit::none();
+        let shear = Shear::new(&scaled.ray);
+        self.bvh.ray_traverse(scaled.ray, &mut hit, |r, i| {
+            let t = shear.intersect(&self.tris[i], r.tmin, r.tmax);
+            if t == f32::INFINITY {
+                return t;
+            }
+            let o = self.tri_object[self.ids[i] as usize];
+            if see_through[o as usize] {
+                through.push((o, t));
+                return f32::INFINITY;
+            }
+            if t < best_t || (t == best_t && self.ids[i] < best) {
+                best_t = t;
+                best = self.ids[i];
+            }
+            t
+        });
+        if best != u32::MAX {
+            out.push(self.tri_object[best as usize]);
+        }
+        // A see-through surface at the occluder's very depth is seen (the
+        // conservative reading of a tie).
+        for &(o, t) in &through {
+            if t <= best_t && !out.contains(&o) {
+                out.push(o);
+            }
+        }
     }
 
     /// The closest hits of many rays, traced in parallel; `out[i]` is the
@@ -405,6 +498,29 @@ impl Tracer {
         self.closest_hits_into(rays, &mut out);
         out
     }
+
+    /// [`Tracer::closest_hit_towards`] of many rays, traced in parallel:
+    /// `out[i]` is the hit of `rays[i]` aimed at `targets[i]`.
+    ///
+    /// # Panics
+    /// When `rays`, `targets` and `out` differ in length.
+    pub fn closest_hits_towards_into(
+        &self,
+        rays: &[Ray],
+        targets: &[u32],
+        out: &mut [Option<Hit>],
+    ) {
+        assert_eq!(rays.len(), out.len(), "one output slot per ray");
+        assert_eq!(rays.len(), targets.len(), "one target per ray");
+        const CHUNK: usize = 256;
+        out.par_chunks_mut(CHUNK)
+            .zip(rays.par_chunks(CHUNK).zip(targets.par_chunks(CHUNK)))
+            .for_each(|(out, (rays, targets))| {
+                for ((o, r), &t) in out.iter_mut().zip(rays).zip(targets) {
+                    *o = self.closest_hit_towards(r, t);
+                }
+            });
+    }
 }
 
 /// The closest hit of `ray` by testing every triangle of `scene` in order
@@ -419,6 +535,10 @@ pub fn brute_force_closest_hit(scene: &Scene, ray: &Ray) -> Option<Hit> {
     let shear = Shear::new(&r);
     let mut best: Option<(u32, f32)> = None;
     for (i, tri) in scene.triangles().iter().enumerate() {
+        let object = &scene.objects()[scene.object_of_triangle(i as u32)];
+        if !object.flags.occludes() {
+            continue;
+        }
         let t = shear.intersect(&to_bvh_triangle(tri), r.tmin, r.tmax);
         if t < best.map_or(f32::INFINITY, |b| b.1) {
             best = Some((i as u32, t));
@@ -468,6 +588,45 @@ mod tests {
         );
         let seg = Ray::segment(Vec3::new(0.5, 0.5, 0.5), Vec3::new(0.5, 0.5, -0.5));
         assert_eq!(tracer.closest_hit(&seg).unwrap().t, 0.5);
+    }
+
+    #[test]
+    fn rays_pass_through_objects_that_never_occlude() {
+        use crate::scene::ObjectFlags;
+        let glass = quad_scene().with_flags(&[ObjectFlags::NONE, ObjectFlags::NEVER_OCCLUDER]);
+        let tracer = Tracer::new(&glass);
+        let down = Ray::new(Vec3::new(0.3, 0.6, 2.0), -Vec3::Z);
+        // The near square (1) is glass: the far one (0) is hit through it.
+        let h = tracer.closest_hit(&down).unwrap();
+        assert_eq!((h.object, h.t), (0, 2.0));
+        assert_eq!(Some(h), brute_force_closest_hit(&glass, &down));
+        // Aimed at the glass, the glass is what is met first.
+        let h = tracer.closest_hit_towards(&down, 1).unwrap();
+        assert_eq!((h.object, h.t), (1, 1.0));
+        assert_eq!(tracer.closest_hit_towards(&down, 0).unwrap().object, 0);
+        // Both are seen along the ray; only the glass from between them
+        // looking up, nothing past the far square looking down from under it.
+        let mut seen = Vec::new();
+        tracer.seen_along(&down, &mut seen);
+        seen.sort_unstable();
+        assert_eq!(seen, [0, 1]);
+        tracer.seen_along(&Ray::new(Vec3::new(0.3, 0.6, 0.5), Vec3::Z), &mut seen);
+        assert_eq!(seen, [1]);
+        tracer.seen_along(&down.with_tmax(0.5), &mut seen);
+        assert!(seen.is_empty());
+        // The far square occludes: the glass behind it is not seen.
+        let mut seen_up = Vec::new();
+        tracer.seen_along(&Ray::new(Vec3::new(0.3, 0.6, -1.0), Vec3::Z), &mut seen_up);
+        assert_eq!(seen_up, [0]);
+        // Batches agree with single rays.
+        let rays = [down, down, Ray::new(Vec3::splat(5.0), Vec3::Z)];
+        let mut out = [None; 3];
+        tracer.closest_hits_towards_into(&rays, &[1, NO_TARGET, 1], &mut out);
+        assert_eq!(out.map(|h| h.map(|h| h.object)), [Some(1), Some(0), None]);
+        // Without flags nothing changes.
+        let plain = Tracer::new(&quad_scene());
+        plain.seen_along(&down, &mut seen);
+        assert_eq!(seen, [1]);
     }
 
     #[test]

@@ -332,6 +332,33 @@ pub unsafe extern "C" fn vis5d_object_id(pvs: *const Vis5dPvs, object: usize) ->
         .map_or(std::ptr::null(), |n| n.as_ptr())
 }
 
+/// Object flag: in every set of the tree (a sky, what must never be
+/// culled; `vis5d build --flags`).
+pub const VIS5D_FLAG_ALWAYS_VISIBLE: u8 = 1;
+
+/// Object flag: hides nothing, rays pass through it (glass, foliage).
+pub const VIS5D_FLAG_NEVER_OCCLUDER: u8 = 2;
+
+// The header's literals are the library's bits.
+const _: () = assert!(
+    VIS5D_FLAG_ALWAYS_VISIBLE == vis5d::codec::ObjectFlags::ALWAYS_VISIBLE.bits()
+        && VIS5D_FLAG_NEVER_OCCLUDER == vis5d::codec::ObjectFlags::NEVER_OCCLUDER.bits()
+);
+
+/// The flags of object `object` as the build set them: a combination of
+/// `VIS5D_FLAG_ALWAYS_VISIBLE` and `VIS5D_FLAG_NEVER_OCCLUDER`; 0 for
+/// none, for an index past the count or for a null handle.
+///
+/// # Safety
+/// `pvs` is null or a live handle.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn vis5d_object_flags(pvs: *const Vis5dPvs, object: usize) -> u8 {
+    // SAFETY: null or live by contract.
+    unsafe { pvs.as_ref() }
+        .and_then(|h| h.pvs.objects().get(object))
+        .map_or(0, |o| o.flags.bits())
+}
+
 /// The index of the object whose id is `id` (NUL-terminated UTF-8) into
 /// `*object`; `VIS5D_STATUS_BAD_ARGUMENT` when no object has it.
 ///

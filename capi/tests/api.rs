@@ -186,6 +186,12 @@ fn bad_arguments_are_refused_and_answers_match_the_rust_api() {
         );
         let name = CStr::from_ptr(vis5d_object_name(pvs, 0)).to_str().unwrap();
         assert_eq!(name, rust.objects()[0].name);
+        // Flags as the build set them (common::small_file).
+        assert_eq!(vis5d_object_flags(pvs, 0), VIS5D_FLAG_NEVER_OCCLUDER);
+        assert_eq!(vis5d_object_flags(pvs, n - 1), VIS5D_FLAG_ALWAYS_VISIBLE);
+        assert_eq!(vis5d_object_flags(pvs, 1), 0);
+        assert_eq!(vis5d_object_flags(pvs, n), 0);
+        assert_eq!(vis5d_object_flags(ptr::null(), 0), 0);
         let (mut bmin, mut bmax, mut upv) = ([0f64; 3], [0f64; 3], [0f32; 3]);
         assert_eq!(
             vis5d_view_box(pvs, bmin.as_mut_ptr(), bmax.as_mut_ptr()),

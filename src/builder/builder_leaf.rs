@@ -222,8 +222,14 @@ pub(super) fn visible_set(
     seed: u64,
     stats: &mut BuildStats,
 ) -> Decided {
+    let mut set = tests.proven;
+    // Always visible: in every set, never tested (they are candidates
+    // everywhere, being in the root's set).
+    for &o in &ctx.always_visible {
+        set.insert(o);
+    }
     let mut d = Decided {
-        set: tests.proven,
+        set,
         rejected: ObjectSet::new(tests.candidates.capacity()),
         fewest_misses: u32::MAX,
         undecided: 0,
@@ -310,6 +316,7 @@ fn run(
     };
     let mut rays: Vec<Ray> = Vec::new();
     let mut owner: Vec<u32> = Vec::new();
+    let mut targets: Vec<u32> = Vec::new();
     while !pending.is_empty() {
         rays.clear();
         owner.clear();
@@ -342,7 +349,9 @@ fn run(
                 }
             }
         }
-        let hits = ctx.trace(&rays, stats);
+        targets.clear();
+        targets.extend(owner.iter().map(|&k| pending[k as usize].object as u32));
+        let hits = ctx.trace_towards(&rays, &targets, stats);
         stats.object_rays += rays.len() as u64;
         if keep {
             d.samples.extend(

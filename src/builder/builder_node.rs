@@ -28,6 +28,8 @@ pub(super) struct Ctx<'a> {
     /// Per object, the objects near it (`super::neighbours`): a leaf
     /// retests a dropped object only near one its rays hit.
     pub neighbours: Vec<Vec<u32>>,
+    /// The objects flagged always visible: in every set.
+    pub always_visible: Vec<usize>,
     pub root_measure: f64,
     /// Misses in a row an internal node needs before an object is
     /// invisible (see [`BuildParams::internal_miss_factor`]).
@@ -57,6 +59,24 @@ impl Ctx<'_> {
     /// Traces `rays` in parallel, timing it: the objects hit.
     pub fn trace(&self, rays: &[Ray], stats: &mut BuildStats) -> Vec<Option<u32>> {
         let hits = self.trace_hits(rays, stats);
+        hits.into_iter().map(|h| h.map(|h| h.object)).collect()
+    }
+
+    /// Traces object samples in parallel, timing it: the object each ray,
+    /// aimed at object `targets[i]`, meets first (the target included
+    /// where it does not occlude:
+    /// [`crate::trace::Tracer::closest_hit_towards`]).
+    pub fn trace_towards(
+        &self,
+        rays: &[Ray],
+        targets: &[u32],
+        stats: &mut BuildStats,
+    ) -> Vec<Option<u32>> {
+        let start = Instant::now();
+        let mut hits = vec![None; rays.len()];
+        self.tracer
+            .closest_hits_towards_into(rays, targets, &mut hits);
+        stats.trace_seconds += start.elapsed().as_secs_f64();
         hits.into_iter().map(|h| h.map(|h| h.object)).collect()
     }
 

@@ -494,6 +494,7 @@ pub fn file_with_params(
                 id,
                 triangles: o.triangle_count() as u32,
                 bounds: Some(o.bounds),
+                flags: o.flags,
             })
             .collect(),
         tree,
@@ -639,6 +640,7 @@ pub fn build(
         } else {
             Vec::new()
         },
+        always_visible: scene.always_visible().collect(),
         root_measure: root.measure(),
         misses_decision: params.sprt.misses_decision(),
         internal_min_misses: params

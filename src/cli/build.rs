@@ -247,6 +247,16 @@ pub struct BuildArgs {
     /// `Pvs::object_index`); unique, 1 to 1024 bytes, no NUL.
     #[arg(long, value_name = "IDS.json")]
     ids: Option<PathBuf>,
+    /// Objects' flags, the overrides engines offer: a JSON object from
+    /// default ids (as for --ids) to lists of flags, for example
+    /// `{"sky": ["always_visible"], "window#2": ["never_occluder"]}`.
+    /// `always_visible`: in every set, never tested (a sky, what must
+    /// never be culled). `never_occluder`: rays pass through it (glass,
+    /// foliage, fences): it is seen where a ray reaches it and hides
+    /// nothing. Honoured by the builder and the oracles, stored in the
+    /// .v5d (`query --json --ids` shows them; `vis5d check` honours them).
+    #[arg(long, value_name = "FLAGS.json")]
+    flags: Option<PathBuf>,
 }
 
 impl BuildArgs {
@@ -444,6 +454,7 @@ pub fn run(args: &BuildArgs) -> Result<()> {
         "cache fewer rays or build shallower trees",
     )?;
     let (scene, load_seconds) = load_scene_up(&args.file, args.up)?;
+    let scene = crate::common::with_flags(args.flags.as_deref(), scene)?;
     let ids = object_ids(args, &scene)?;
     if let Some(local) = local_view_box(args, &scene)? {
         params.view_box = Some(local);
@@ -539,6 +550,7 @@ fn checked_output(args: &BuildArgs) -> Result<PathBuf> {
         // Fail before the build, not after it.
         let mut inputs = vec![args.file.as_path()];
         inputs.extend(args.ids.as_deref());
+        inputs.extend(args.flags.as_deref());
         check_output(&output, "tree", &inputs)?;
     }
     if args.verify_views > 0 {
@@ -683,6 +695,7 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
     params.validate().map_err(bake_flag)?;
     let output = checked_output(args)?;
     let (scene, load_seconds) = load_scene_up(&args.file, args.up)?;
+    let scene = crate::common::with_flags(args.flags.as_deref(), scene)?;
     let ids = object_ids(args, &scene)?;
     if let Some(local) = local_view_box(args, &scene)? {
         params.view_box = Some(local);

@@ -136,6 +136,9 @@ pub fn run(args: &CheckArgs) -> Result<Outcome> {
             crate::common::up_hint(file.frame.up, scene.frame().up)
         );
     }
+    // The objects' flags as the tree was built with them.
+    let flags: Vec<_> = file.objects.iter().map(|o| o.flags).collect();
+    let scene = scene.with_flags(&flags);
     let tracer = Tracer::new(&scene);
     let oracle = Oracle::new(&scene, params, args.flags.rasteriser())?;
     let check_params = CheckParams {

@@ -518,3 +518,25 @@ pub fn coding_sizes(tree: &VisTree) -> Vec<CodingSize> {
         })
         .collect()
 }
+
+/// The scene with the flags of the sidecar at `path` (`--flags`), checked
+/// before the build.
+pub fn with_flags(path: Option<&Path>, scene: Scene) -> Result<Scene> {
+    let Some(path) = path else {
+        return Ok(scene);
+    };
+    let bytes = vis5d::input::read_regular(path, 64 << 20)
+        .with_context(|| format!("{}: cannot read the flags", path.display()))?;
+    let user: std::collections::HashMap<String, Vec<String>> = serde_json::from_slice(&bytes)
+        .with_context(|| {
+            format!(
+                "{}: expected a JSON object from default ids (names, or name#k where names repeat) \
+                 to lists of flags (always_visible, never_occluder)",
+                path.display()
+            )
+        })?;
+    let ids = vis5d::codec::default_ids(scene.objects().iter().map(|o| o.name.as_str()));
+    let flags = vis5d::codec::flags_from_names(&ids, &user)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok(scene.with_flags(&flags))
+}

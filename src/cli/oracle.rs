@@ -150,6 +150,11 @@ pub struct OracleArgs {
     /// stand on it. Cells and printed points stay in world coordinates.
     #[arg(long, value_name = "AXIS", default_value = "z")]
     up: vis5d::geom::Up,
+    /// Objects' flags, as for `vis5d build --flags`: a JSON object from
+    /// default ids to lists of flags (`always_visible`: kept;
+    /// `never_occluder`: hides nothing).
+    #[arg(long = "flags", value_name = "FLAGS.json")]
+    object_flags: Option<PathBuf>,
     /// The view cell: a box of viewpoints, x0,y0,z0,x1,y1,z1 (world
     /// coordinates).
     #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box, allow_hyphen_values = true)]
@@ -381,6 +386,7 @@ pub fn run(args: &OracleArgs) -> Result<()> {
     }
     let params = args.flags.params()?;
     let (scene, load) = load_scene_up(&args.file, args.up)?;
+    let scene = crate::common::with_flags(args.object_flags.as_deref(), scene)?;
     let rasteriser = args.flags.rasteriser();
     let start = Instant::now();
     let oracle = Oracle::new(&scene, params, rasteriser)?;
@@ -570,6 +576,7 @@ fn run_shrink(args: &OracleArgs) -> Result<()> {
         ShrinkError::Parameter { name, .. } => anyhow!("{}: {e}", flag(name)),
     })?;
     let (scene, load) = load_scene_up(&args.file, args.up)?;
+    let scene = crate::common::with_flags(args.object_flags.as_deref(), scene)?;
     let rasteriser = args.flags.rasteriser();
     let start = Instant::now();
     let oracle = ShrinkOracle::with_rasteriser(&scene, params, rasteriser)?;

@@ -53,7 +53,8 @@ pub struct QueryArgs {
     json: bool,
     /// Print the objects' ids instead of their names (unique: the name,
     /// `name#k` where names repeat, or the build's `--ids`); with --json,
-    /// each object as {"index", "id", "name"}.
+    /// each object as {"index", "id", "name", "flags"} (flags: the build's
+    /// `--flags`, a list of names, omitted when empty).
     #[arg(long, conflicts_with = "triangles")]
     ids: bool,
     /// Also print, per object, the ranges of its triangles to draw
@@ -71,6 +72,8 @@ struct IdJson<'a> {
     index: usize,
     id: &'a str,
     name: &'a str,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    flags: Vec<&'static str>,
 }
 
 /// An object's triangles to draw, for --triangles --json.
@@ -234,6 +237,7 @@ pub fn run(args: &QueryArgs) -> Result<()> {
                         index: o,
                         id: &pvs.objects()[o].id,
                         name: &pvs.objects()[o].name,
+                        flags: pvs.objects()[o].flags.names().collect(),
                     })
                     .collect();
                 serde_json::to_writer(&mut out, &rows)?;

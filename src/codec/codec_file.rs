@@ -12,6 +12,7 @@ use glam::{DVec3, Vec3};
 
 use super::CodecError;
 use super::codec_bounds::BoundsGrid;
+use super::codec_flags::ObjectFlags;
 use super::codec_tree::{Coding, DecodeLimits, decode, encode};
 use crate::geom::cell::{Cell, DIMS};
 use crate::geom::{Aabb, Frame, Up};
@@ -23,11 +24,11 @@ use crate::tree::{LeafRecord, VisTree};
 /// transfers).
 pub const MAGIC: [u8; 8] = [0x89, b'V', b'5', b'D', b'\r', b'\n', 0x1a, b'\n'];
 
-/// The format version this code writes. It reads this one, version 4 (no
-/// up axis: +z), version 3 (no slices either), version 2 (no leaf records
+/// The format version this code writes. It reads this one, version 5 (no
+/// object flags), version 4 (no up axis: +z), version 3 (no slices either), version 2 (no leaf records
 /// either) and version 1 (which has no frame origin either: its trees are
 /// in world coordinates).
-pub const VERSION: u16 = 5;
+pub const VERSION: u16 = 6;
 
 /// The size of the fixed header of a file of `version`, before the
 /// parameters: version 2 added the frame origin (three f64) and the grid
@@ -42,10 +43,12 @@ const fn fixed_len(version: u16) -> usize {
 }
 
 /// The fewest bytes an object's entry takes in a file of `version`: its
-/// triangle count, (version 2) its bounds codes, its name's length.
+/// triangle count, (version 2) its bounds codes, its name's length,
+/// (version 5) its id's length, (version 6) its flags.
 const fn min_object_len(version: u16) -> usize {
     match version {
-        5.. => 4 + 12 + 2 + 2,
+        6.. => 4 + 12 + 2 + 2 + 1,
+        5 => 4 + 12 + 2 + 2,
         2..=4 => 4 + 12 + 2,
         _ => 4 + 2,
     }
@@ -81,6 +84,8 @@ pub struct FileObject {
     /// quantised outwards (it holds the object's box); `None` when the
     /// file does not say (version 1).
     pub bounds: Option<Aabb>,
+    /// Its flags, set at bake time (version 6; older files: none).
+    pub flags: ObjectFlags,
 }
 
 /// Everything a `.v5d` file holds.
@@ -173,6 +178,118 @@ pub fn geometry_fingerprint<'a>(
     h
 }
 
+/// Why [`fingerprint_meshes`] cannot fingerprint an engine's buffers.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum MeshError {
+    /// An object's index count is not a multiple of three.
+    #[error("object {object}: {count} indices do not make whole triangles")]
+    Indices {
+        /// The object's place in the list.
+        object: usize,
+        /// Its index count.
+        count: usize,
+    },
+    /// An index names no vertex.
+    #[error("object {object}: index {index} but only {vertices} vertices")]
+    OutOfRange {
+        /// The object's place in the list.
+        object: usize,
+        /// The index.
+        index: u32,
+        /// Its vertex count.
+        vertices: usize,
+    },
+    /// A vertex of a triangle is NaN or infinite.
+    #[error("object {object}: a vertex of a triangle is not finite")]
+    NonFinite {
+        /// The object's place in the list.
+        object: usize,
+    },
+    /// No triangle has a non-zero area: the loaders refuse such a model.
+    #[error("no triangle has a non-zero area")]
+    Empty,
+}
+
+/// The geometry fingerprint that `vis5d build` stores for a model, from
+/// the model as an engine holds it: per object, in the model's order, its
+/// vertex positions in world coordinates and a triangle list of indices
+/// into them; `up` is the build's `--up`. Equal to
+/// `Scene::fingerprint` of the model loaded from OBJ, glTF or GLB alike
+/// (compare it with [`crate::query::Pvs::fingerprint`] to know that a
+/// `.v5d` was built for the geometry at hand).
+///
+/// Computed as the loaders do: triangles of zero area are left out
+/// ([`crate::geom::zero_area`]), then objects left without triangles;
+/// the frame of a model far from the origin is chosen from the rest
+/// ([`Frame::for_bounds`]). The positions must be the ones the loader
+/// reads, bit for bit: a glTF node's transform is applied by the loader
+/// in f64 and rounded once, so an engine that composes transforms in f32
+/// may differ in the last bit of a moved vertex.
+pub fn fingerprint_meshes(objects: &[(&[[f32; 3]], &[u32])], up: Up) -> Result<u64, MeshError> {
+    for (object, (positions, indices)) in objects.iter().enumerate() {
+        if !indices.len().is_multiple_of(3) {
+            return Err(MeshError::Indices {
+                object,
+                count: indices.len(),
+            });
+        }
+        if let Some(&index) = indices.iter().find(|&&i| i as usize >= positions.len()) {
+            return Err(MeshError::OutOfRange {
+                object,
+                index,
+                vertices: positions.len(),
+            });
+        }
+        if indices
+            .iter()
+            .any(|&i| !positions[i as usize].iter().all(|c| c.is_finite()))
+        {
+            return Err(MeshError::NonFinite { object });
+        }
+    }
+    let (mut min, mut max) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    for t in objects.iter().flat_map(|&(p, i)| mesh_triangles(p, i)) {
+        if !crate::geom::zero_area(&t) {
+            for v in t {
+                min = min.min(v);
+                max = max.max(v);
+            }
+        }
+    }
+    if min.x > max.x {
+        return Err(MeshError::Empty);
+    }
+    // As the loaders: local coordinates in the +z frame, zero areas
+    // decided there, then the axes turned (exactly) for `up`.
+    let z_up = Frame::for_bounds(min, max, Up::Z);
+    let frame = Frame { up, ..z_up };
+    let local: Vec<Vec<[Vec3; 3]>> = objects
+        .iter()
+        .map(|o| {
+            mesh_triangles(o.0, o.1)
+                .map(|t| t.map(|v| z_up.to_local(v)))
+                .filter(|t| !crate::geom::zero_area(&t.map(|v| v.as_dvec3())))
+                .map(|t| t.map(|v| frame.dir_to_local(v)))
+                .collect()
+        })
+        .filter(|t: &Vec<[Vec3; 3]>| !t.is_empty())
+        .collect();
+    Ok(geometry_fingerprint(
+        local.iter().map(Vec::as_slice),
+        &frame,
+    ))
+}
+
+/// The triangles of an indexed mesh, corners in f64.
+fn mesh_triangles<'a>(
+    positions: &'a [[f32; 3]],
+    indices: &'a [u32],
+) -> impl Iterator<Item = [DVec3; 3]> + 'a {
+    indices
+        .chunks_exact(3)
+        .map(move |t| [0, 1, 2].map(|k| DVec3::from_array(positions[t[k] as usize].map(f64::from))))
+}
+
 /// The CRC-32 (IEEE 802.3, as in zip and PNG) of `bytes`.
 pub fn crc32(bytes: &[u8]) -> u32 {
     const TABLE: [u32; 256] = {
@@ -260,6 +377,7 @@ pub fn write_file(file: &V5dFile) -> Vec<u8> {
         };
         out.extend_from_slice(&(id.len() as u16).to_le_bytes());
         out.extend_from_slice(id);
+        out.push(o.flags.bits());
     }
     let (bits, _) = encode(tree, file.coding);
     out.extend_from_slice(&bits.bit_len().to_le_bytes());
@@ -582,11 +700,20 @@ fn parse_body(body: &[u8], version: u16, limits: ReadLimits) -> Result<V5dFile, 
         } else {
             ""
         };
+        let flags = if version >= 6 {
+            let bits = c.u8("an object's flags")?;
+            ObjectFlags::from_bits(bits).ok_or_else(|| {
+                CodecError::Corrupt(format!("object {i} has unknown flags {bits:#04x}"))
+            })?
+        } else {
+            ObjectFlags::NONE
+        };
         table.push(FileObject {
             name: name.to_owned(),
             id: id.to_owned(),
             triangles,
             bounds,
+            flags,
         });
     }
     if version < 5 {
@@ -731,6 +858,7 @@ mod tests {
                 id: "é".repeat(40_000),
                 triangles: 1,
                 bounds: None,
+                flags: ObjectFlags::NEVER_OCCLUDER,
             }],
             tree,
             slices: None,
@@ -738,6 +866,7 @@ mod tests {
         let back = read_file(&write_file(&file), ReadLimits::default()).unwrap();
         assert_eq!(back.objects[0].name, "é".repeat(32_767));
         assert_eq!(back.objects[0].id, back.objects[0].name);
+        assert_eq!(back.objects[0].flags, ObjectFlags::NEVER_OCCLUDER);
     }
 
     #[test]

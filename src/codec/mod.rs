@@ -6,16 +6,18 @@
 mod codec_bits;
 mod codec_bounds;
 mod codec_file;
+mod codec_flags;
 mod codec_ids;
 mod codec_tree;
 
 pub use codec_bits::{BitReader, BitWriter};
 pub use codec_bounds::{BoundsGrid, UNKNOWN as UNKNOWN_BOUNDS};
 pub use codec_file::{
-    FileObject, MAGIC, MIN_FILE_LEN, ReadLimits, V5dFile, VERSION, crc32, geometry_fingerprint,
-    read_file, write_file,
+    FileObject, MAGIC, MIN_FILE_LEN, MeshError, ReadLimits, V5dFile, VERSION, crc32,
+    fingerprint_meshes, geometry_fingerprint, read_file, write_file,
 };
 pub(crate) use codec_file::{VarintError, get_varint, put_varint};
+pub use codec_flags::{FlagError, ObjectFlags, flags_from_names};
 pub use codec_ids::{IdError, MAX_ID_BYTES, apply_user_ids, default_ids};
 pub use codec_tree::{CodeSize, Coding, DecodeLimits, UnknownCoding, code_size, decode, encode};
 

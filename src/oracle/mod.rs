@@ -450,7 +450,23 @@ impl<'a> Oracle<'a> {
         )
     }
 
+    /// [`Oracle::prove`], with the objects flagged always visible kept
+    /// whatever it proved.
     fn run(
+        &self,
+        cell: &Aabb,
+        parent_hidden: Option<&ObjectSet>,
+        rasterise: &mut dyn FnMut(&[MapJob]) -> Vec<Vec<f64>>,
+        sliced: Option<&SlicedScene>,
+    ) -> CellReport {
+        let mut report = self.prove(cell, parent_hidden, rasterise, sliced);
+        for o in self.scene.always_visible() {
+            report.visible.insert(o);
+        }
+        report
+    }
+
+    fn prove(
         &self,
         cell: &Aabb,
         parent_hidden: Option<&ObjectSet>,
@@ -1275,7 +1291,7 @@ impl<'a> Oracle<'a> {
                 crate::trace::Ray::segment(p, q).with_tmax(1.0 + crate::sample::SEGMENT_SLACK);
             ray.is_valid()
                 && tracer
-                    .closest_hit(&ray)
+                    .closest_hit_towards(&ray, i as u32)
                     .is_some_and(|h| h.object as usize == i)
         })
     }

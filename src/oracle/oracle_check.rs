@@ -308,14 +308,16 @@ fn check_leaf(
         .map(|_| cell_ray(&cell_point(cell, &mut rng)))
         .collect();
     let mut truth = ObjectSet::new(oracle_all.capacity());
-    for (ray, hit) in rays.iter().zip(tracer.closest_hits(&rays)) {
-        let Some(h) = hit else { continue };
-        let o = h.object as usize;
-        if truth.insert(o) && !restricted.contains(o) {
-            violations.push(Violation {
-                object: h.object,
-                ray: *ray,
-            });
+    let mut seen = Vec::new();
+    for ray in &rays {
+        tracer.seen_along(ray, &mut seen);
+        for &o in &seen {
+            if truth.insert(o as usize) && !restricted.contains(o as usize) {
+                violations.push(Violation {
+                    object: o,
+                    ray: *ray,
+                });
+            }
         }
     }
     // Aimed bursts: at what the leaf keeps and the oracle hid (a hit is a
@@ -376,7 +378,9 @@ fn burst(
         .collect();
     let mut hits = 0;
     let mut witness = None;
-    for (ray, hit) in rays.iter().zip(tracer.closest_hits(&rays)) {
+    let mut found = vec![None; rays.len()];
+    tracer.closest_hits_towards_into(&rays, &vec![o as u32; rays.len()], &mut found);
+    for (ray, hit) in rays.iter().zip(found) {
         if hit.is_some_and(|h| h.object as usize == o) {
             hits += 1;
             witness.get_or_insert(*ray);

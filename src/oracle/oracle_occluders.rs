@@ -146,10 +146,14 @@ pub struct Extracted {
 }
 
 /// Extracts the convex occluders and the sliceable solids of every object
-/// of a scene.
+/// of a scene that occludes (none of an object flagged
+/// [`crate::scene::ObjectFlags::NEVER_OCCLUDER`]).
 pub fn extract(scene: &Scene) -> Extracted {
     let mut out = Extracted::default();
     for object in 0..scene.objects().len() {
+        if !scene.objects()[object].flags.occludes() {
+            continue;
+        }
         extract_object(scene.object_triangles(object), object as u32, &mut out);
     }
     out

@@ -53,10 +53,14 @@ pub struct Patch {
 }
 
 /// The patches of a scene, sorted by axis, then coordinate. Planes of less
-/// than `min_area` in all are left out.
+/// than `min_area` in all are left out, and so are the triangles of objects
+/// that do not occlude.
 pub fn extract(scene: &Scene, min_area: f64) -> Vec<Patch> {
     let mut groups: HashMap<(usize, u32), Vec<[DVec2; 3]>> = HashMap::new();
-    for t in scene.triangles() {
+    let occluding = (0..scene.objects().len())
+        .filter(|&o| scene.objects()[o].flags.occludes())
+        .flat_map(|o| scene.object_triangles(o));
+    for t in occluding {
         for axis in 0..3 {
             let c = t[0][axis];
             if t[1][axis].to_bits() != c.to_bits() || t[2][axis].to_bits() != c.to_bits() {

@@ -30,6 +30,7 @@ use std::path::{Path, PathBuf};
 use glam::{DVec3, Vec3};
 use rand::{Rng, RngExt};
 
+pub use crate::codec::ObjectFlags;
 use crate::geom::{Aabb, Frame, Up};
 use crate::invariant::InvariantError;
 
@@ -51,6 +52,10 @@ pub struct Object {
     pub bounds: Aabb,
     /// The total surface area (one side), in squared scene units.
     pub area: f64,
+    /// What the object is to visibility beyond its triangles (always
+    /// visible, never an occluder): none when loaded, set by
+    /// [`Scene::with_flags`] (`vis5d build --flags`).
+    pub flags: ObjectFlags,
 }
 
 impl Object {
@@ -289,35 +294,7 @@ fn line_suffix(line: usize) -> String {
 /// times the squared longest edge (the corners are collinear to within
 /// rounding), or the corners coincide.
 pub fn is_degenerate(t: &Triangle) -> bool {
-    degenerate_f64(&t.map(|v| v.as_dvec3()))
-}
-
-/// [`is_degenerate`] for f64 corners. The edges are scaled by their
-/// largest component first, so that huge coordinates (1e160) do not
-/// overflow into a false "degenerate".
-fn degenerate_f64(&[a, b, c]: &[DVec3; 3]) -> bool {
-    let (e0, e1, e2) = (b - a, c - a, c - b);
-    let scale = e0.abs().max(e1.abs()).max(e2.abs()).max_element();
-    if scale == 0.0 {
-        return true;
-    }
-    if !scale.is_finite() {
-        // Corners too far apart for f64 differences: not a zero area.
-        return false;
-    }
-    // Scaled only where squares would overflow or underflow, so that
-    // every other triangle is decided exactly as before.
-    let (e0, e1, e2) = if (1e-100..1e100).contains(&scale) {
-        (e0, e1, e2)
-    } else {
-        (e0 / scale, e1 / scale, e2 / scale)
-    };
-    let longest = e0
-        .length_squared()
-        .max(e1.length_squared())
-        .max(e2.length_squared());
-    let cross = e0.cross(e1).length();
-    cross <= 1e-12 * longest
+    crate::geom::zero_area(&t.map(|v| v.as_dvec3()))
 }
 
 /// The area of a triangle (f64, one side).
@@ -428,6 +405,33 @@ impl Scene {
         self.bounds = Aabb::new(turn(self.bounds.min), turn(self.bounds.max));
         self.frame = new;
         self
+    }
+
+    /// The same scene with object `i`'s flags set to `flags[i]`: what the
+    /// builder, the tracer and the oracles honour (see [`ObjectFlags`]).
+    ///
+    /// # Panics
+    /// When `flags` has not one entry per object.
+    pub fn with_flags(mut self, flags: &[ObjectFlags]) -> Scene {
+        assert_eq!(flags.len(), self.objects.len(), "one flag set per object");
+        for (o, &f) in self.objects.iter_mut().zip(flags) {
+            o.flags = f;
+        }
+        self
+    }
+
+    /// Whether every object occludes (no [`ObjectFlags::NEVER_OCCLUDER`]).
+    pub fn all_occlude(&self) -> bool {
+        self.objects.iter().all(|o| o.flags.occludes())
+    }
+
+    /// The objects flagged [`ObjectFlags::ALWAYS_VISIBLE`], in order.
+    pub fn always_visible(&self) -> impl Iterator<Item = usize> + '_ {
+        self.objects
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| o.flags.always_visible())
+            .map(|(i, _)| i)
     }
 
     /// The format the scene was read from.

@@ -10,7 +10,7 @@ use glam::DVec3;
 
 use super::{
     LoadReport, MAX_EXTENT, MIN_EXTENT, Object, Scene, SceneError, SceneFormat, Triangle,
-    degenerate_f64, is_degenerate, triangle_area,
+    is_degenerate, triangle_area,
 };
 use crate::geom::frame::MAX_DIAGONALS;
 use crate::geom::{Aabb, Frame};
@@ -108,7 +108,7 @@ impl SceneBuilder {
         // make it look like a scene around the origin (a review found one
         // that did: 1,463 triangles of 3,196 then rounded to zero area).
         let (mut min, mut max) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-        for t in self.world.iter().filter(|t| !degenerate_f64(t)) {
+        for t in self.world.iter().filter(|t| !crate::geom::zero_area(t)) {
             for v in t {
                 min = min.min(*v);
                 max = max.max(*v);
@@ -176,6 +176,7 @@ impl SceneBuilder {
                 triangles: start as u32..end as u32,
                 bounds,
                 area,
+                flags: super::ObjectFlags::NONE,
             });
         }
         drop(self.world);

@@ -453,6 +453,10 @@ impl<'a> ShrinkOracle<'a> {
         let mut visible = ObjectSet::new(objects);
         let mut touching = 0;
         for (i, o) in self.scene.objects().iter().enumerate() {
+            if o.flags.always_visible() {
+                visible.insert(i);
+                continue;
+            }
             let (lo, hi) = (o.bounds.min.as_dvec3(), o.bounds.max.as_dvec3());
             if !(lo.cmple(hi).all()) {
                 // No triangles: nothing to see.

@@ -520,3 +520,141 @@ fn a_georeferenced_node_translation_keeps_the_mesh_precise() {
         }
     }
 }
+
+/// The same triangles as OBJ and as GLB give one fingerprint, and an
+/// engine gets it from its own vertex and index buffers
+/// (`codec::fingerprint_meshes`): near the origin and far from it, +z and
+/// +y up, with a triangle of zero area and an object of only that.
+#[test]
+fn one_fingerprint_whatever_the_format_and_from_engine_buffers() {
+    use vis5d::codec::{MeshError, fingerprint_meshes};
+    use vis5d::geom::Up;
+    let dir = tempfile::tempdir().unwrap();
+    for (k, offset) in [[0.0f32, 0.0, 0.0], [600_000.5, -2_000.25, 31.0]]
+        .into_iter()
+        .enumerate()
+    {
+        let at = |p: [f32; 3]| [p[0] + offset[0], p[1] + offset[1], p[2] + offset[2]];
+        // A box corner fan (shared vertices), a quad with a zero-area
+        // triangle, and an object of a zero-area triangle only.
+        type Object = (&'static str, Vec<[f32; 3]>, Vec<u32>);
+        let objects: Vec<Object> = vec![
+            (
+                "fan",
+                vec![
+                    [0.0, 0.0, 0.0],
+                    [1.5, 0.0, 0.0],
+                    [0.0, 2.25, 0.0],
+                    [0.0, 0.0, 0.75],
+                ]
+                .into_iter()
+                .map(at)
+                .collect(),
+                vec![0, 1, 2, 0, 1, 3, 0, 2, 3],
+            ),
+            (
+                "quad",
+                vec![
+                    [3.0, 0.0, 0.1],
+                    [4.0, 0.0, 0.1],
+                    [4.0, 1.0, 0.3],
+                    [3.0, 1.0, 0.3],
+                ]
+                .into_iter()
+                .map(at)
+                .collect(),
+                vec![0, 1, 2, 0, 2, 3, 0, 0, 1],
+            ),
+            (
+                "sliver",
+                vec![[5.0, 5.0, 5.0], [6.0, 6.0, 6.0], [7.0, 7.0, 7.0]]
+                    .into_iter()
+                    .map(at)
+                    .collect(),
+                vec![0, 1, 2],
+            ),
+        ];
+        // OBJ text: the loader reads coordinates as f64, so each is printed
+        // as the f64 of its f32 (the shortest decimal of exactly that
+        // value): the same numbers as the GLB's.
+        let mut obj = String::new();
+        let mut base = 1;
+        for (name, positions, indices) in &objects {
+            obj += &format!("o {name}\n");
+            for p in positions {
+                let [x, y, z] = p.map(f64::from);
+                obj += &format!("v {x} {y} {z}\n");
+            }
+            for t in indices.chunks(3) {
+                let [a, b, c] = [t[0], t[1], t[2]].map(|i| i + base);
+                obj += &format!("f {a} {b} {c}\n");
+            }
+            base += positions.len() as u32;
+        }
+        let obj_path = dir.path().join(format!("model{k}.obj"));
+        std::fs::write(&obj_path, obj).unwrap();
+        let meshes: Vec<Mesh> = objects
+            .iter()
+            .map(|(name, positions, indices)| Mesh {
+                name: Some(name),
+                positions: positions.clone(),
+                indices: Some(indices.clone()),
+                mode: 4,
+            })
+            .collect();
+        let nodes: Vec<Value> = (0..meshes.len())
+            .map(|i| json!({"mesh": i, "name": objects[i].0}))
+            .collect();
+        let (doc, bin) = document(&meshes, json!(nodes), json!([{"nodes": [0, 1, 2]}]));
+        let glb_path = write_glb(&dir, &format!("model{k}.glb"), &doc, &bin);
+        let buffers: Vec<(&[[f32; 3]], &[u32])> = objects
+            .iter()
+            .map(|(_, p, i)| (p.as_slice(), i.as_slice()))
+            .collect();
+        for up in [Up::Z, Up::Y] {
+            let options = scene::LoadOptions {
+                up,
+                ..Default::default()
+            };
+            let from_obj = scene::load_with(&obj_path, &options, &mut |_, _| {}).unwrap();
+            let from_glb = scene::load_with(&glb_path, &options, &mut |_, _| {}).unwrap();
+            assert_eq!(from_obj.objects().len(), 2, "the sliver is dropped");
+            assert_eq!(from_obj.fingerprint(), from_glb.fingerprint(), "{k} {up:?}");
+            assert_eq!(
+                fingerprint_meshes(&buffers, up),
+                Ok(from_obj.fingerprint()),
+                "{k} {up:?}"
+            );
+        }
+        assert_eq!(
+            k == 1,
+            !scene::load(&obj_path).unwrap().frame().at_world_origin()
+        );
+    }
+    // Bad buffers are named, not a panic.
+    let p = [[0.0f32; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    assert_eq!(
+        fingerprint_meshes(&[(&p, &[0, 1])], Up::Z),
+        Err(MeshError::Indices {
+            object: 0,
+            count: 2
+        })
+    );
+    assert_eq!(
+        fingerprint_meshes(&[(&p, &[0, 1, 2]), (&p, &[0, 1, 3])], Up::Z),
+        Err(MeshError::OutOfRange {
+            object: 1,
+            index: 3,
+            vertices: 3
+        })
+    );
+    let nan = [[f32::NAN, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    assert_eq!(
+        fingerprint_meshes(&[(&nan, &[0, 1, 2])], Up::Z),
+        Err(MeshError::NonFinite { object: 0 })
+    );
+    assert_eq!(
+        fingerprint_meshes(&[(&p, &[0, 0, 1])], Up::Z),
+        Err(MeshError::Empty)
+    );
+}

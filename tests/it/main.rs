@@ -8,6 +8,7 @@ mod bad_input;
 mod build;
 mod cli;
 mod conservative;
+mod flags;
 mod gltf_load;
 mod obj_load;
 mod oracle;

@@ -234,7 +234,7 @@ fn build_and_query_with_slices_on_the_command_line() {
     );
     let stat = vis5d(&["stat", out, "--json"]);
     let s: serde_json::Value = serde_json::from_slice(&stat.stdout).unwrap();
-    assert_eq!(s["version"], 5);
+    assert_eq!(s["version"], vis5d::codec::VERSION);
     assert_eq!(s["slices"]["slices"], 8, "{s}");
     let q = vis5d(&[
         "query",

@@ -65,7 +65,7 @@ fn a_scene_turned_and_built_with_its_up_axis_gives_the_same_tree_and_answers() {
         let s: serde_json::Value = serde_json::from_slice(&stat.stdout).unwrap();
         assert_eq!(
             (s["version"].as_u64(), s["up"].as_str()),
-            (Some(5), Some(up.name()))
+            (Some(u64::from(vis5d::codec::VERSION)), Some(up.name()))
         );
         let bytes = std::fs::read(&out).unwrap();
         let file = codec::read_file(&bytes, ReadLimits::default()).unwrap();

@@ -709,11 +709,31 @@ fn ids_are_unique_in_a_file_and_default_before_version_5() {
     );
 }
 
-/// A version 5 file's body (no checksum) as version 4 lays it out: the up
-/// byte (+z) and the objects' id lengths (each 0: ids equal to names) cut.
-fn before_version_5(v5: &[u8], objects: usize) -> Vec<u8> {
+/// A version 6 file's body (no checksum) as version 5 lays it out: the
+/// objects' flags bytes (each 0) cut.
+fn before_version_6(v6: &[u8], objects: usize) -> Vec<u8> {
     let u16_at = |b: &[u8], k: usize| u16::from_le_bytes([b[k], b[k + 1]]) as usize;
-    let mut out = v5.to_vec();
+    let mut out = v6.to_vec();
+    // The parameters' length at 121 (after the up byte and the bounds
+    // grid), then the table: u32 triangles, 6 x u16 bounds, u16 name
+    // length, the name, u16 id length, the id, u8 flags.
+    let params = u32::from_le_bytes(out[121..125].try_into().unwrap()) as usize;
+    let mut k = 125 + params;
+    for _ in 0..objects {
+        k += 4 + 12;
+        k += 2 + u16_at(&out, k);
+        k += 2 + u16_at(&out, k);
+        assert_eq!(out.remove(k), 0, "flags");
+    }
+    out
+}
+
+/// A version 6 file's body (no checksum) as version 4 lays it out: the up
+/// byte (+z), the objects' id lengths (each 0: ids equal to names) and
+/// their flags (each 0) cut.
+fn before_version_5(v6: &[u8], objects: usize) -> Vec<u8> {
+    let u16_at = |b: &[u8], k: usize| u16::from_le_bytes([b[k], b[k + 1]]) as usize;
+    let mut out = before_version_6(v6, objects);
     assert_eq!(out.remove(96), 2, "the up axis");
     // The parameters' length at 120 (after the bounds grid), then the
     // table: u32 triangles, 6 x u16 bounds, u16 name length, the name,
@@ -727,4 +747,39 @@ fn before_version_5(v5: &[u8], objects: usize) -> Vec<u8> {
         out.drain(k..k + 2);
     }
     out
+}
+
+/// Flags in the file (version 6): they round-trip, unknown bits are
+/// refused, and a version 5 file reads as no flags.
+#[test]
+fn flags_round_trip_and_version_5_has_none() {
+    use vis5d::codec::ObjectFlags;
+    let (s, _, tree) = apartment();
+    let mut file = to_file(s, tree.clone(), &BuildParams::default(), None);
+    file.objects[2].flags = ObjectFlags::ALWAYS_VISIBLE.union(ObjectFlags::NEVER_OCCLUDER);
+    let back = codec::read_file(&codec::write_file(&file), ReadLimits::default()).unwrap();
+    let flags = |f: &codec::V5dFile| f.objects.iter().map(|o| o.flags).collect::<Vec<_>>();
+    assert_eq!(flags(&back), flags(&file));
+    // As version 5 (no flags bytes) the same file.
+    let good = file_bytes(None);
+    let plain = codec::read_file(&good, ReadLimits::default()).unwrap();
+    let body = &good[..good.len() - 4];
+    let v5 = before_version_6(body, plain.objects.len());
+    assert_eq!(body.len() - v5.len(), plain.objects.len());
+    let mut v5 = v5;
+    v5[8..10].copy_from_slice(&5u16.to_le_bytes());
+    let crc = codec::crc32(&v5);
+    v5.extend_from_slice(&crc.to_le_bytes());
+    assert_eq!(codec::read_file(&v5, ReadLimits::default()).unwrap(), plain);
+    // Object 0's flags byte: after its name and its id (both the name).
+    let params = u32::from_le_bytes(body[121..125].try_into().unwrap()) as usize;
+    let name = plain.objects[0].name.len();
+    let at = 125 + params + 4 + 12 + 2 + name + 2;
+    let mut bad = body.to_vec();
+    assert_eq!(bad[at], 0);
+    bad[at] = 0x84;
+    let crc = codec::crc32(&bad);
+    bad.extend_from_slice(&crc.to_le_bytes());
+    let err = codec::read_file(&bad, ReadLimits::default()).unwrap_err();
+    assert!(err.to_string().contains("unknown flags 0x84"), "{err}");
 }

@@ -1,0 +1,236 @@
+//! Object flags (issue 15): objects always visible and objects that never
+//! occlude, honoured by the builder, both oracles, the file and `vis5d
+//! check`, and shown against rays.
+
+use std::path::Path;
+
+use glam::Vec3;
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
+use vis5d::bitset::ObjectSet;
+use vis5d::builder::{BuildParams, build};
+use vis5d::geom::Aabb;
+use vis5d::oracle::{Oracle, OracleParams, Rasteriser};
+use vis5d::random::{uniform_direction, uniform_point};
+use vis5d::scene::procedural::shapes::push_box;
+use vis5d::scene::{ObjectFlags, Scene, SceneBuilder, SceneFormat};
+use vis5d::shrink::{ShrinkOracle, ShrinkParams};
+use vis5d::trace::{Ray, Tracer};
+
+use crate::{text, vis5d};
+
+const GLASS: usize = 0;
+const STATUE: usize = 1;
+const WALL: usize = 2;
+const SKY: usize = 3;
+
+/// A glass wall across the room, a statue behind it, a solid wall behind
+/// that and a "sky" behind the solid wall.
+fn gallery() -> Scene {
+    let mut b = SceneBuilder::new(SceneFormat::Procedural);
+    let boxes = [
+        (
+            "glass",
+            Vec3::new(4.9, -10.0, -1.0),
+            Vec3::new(5.1, 10.0, 5.0),
+        ),
+        (
+            "statue",
+            Vec3::new(7.0, -1.0, 0.0),
+            Vec3::new(8.0, 1.0, 2.0),
+        ),
+        (
+            "wall",
+            Vec3::new(9.0, -10.0, -1.0),
+            Vec3::new(11.0, 10.0, 5.0),
+        ),
+        ("sky", Vec3::new(12.0, -3.0, 0.0), Vec3::new(13.0, 3.0, 3.0)),
+    ];
+    for (name, lo, hi) in boxes {
+        let mut tris = Vec::new();
+        push_box(&mut tris, lo, hi);
+        b.begin_object(name);
+        for t in tris {
+            b.push_triangle(t).unwrap();
+        }
+    }
+    b.finish(Path::new("gallery")).unwrap()
+}
+
+fn flags() -> [ObjectFlags; 4] {
+    let mut f = [ObjectFlags::NONE; 4];
+    f[GLASS] = ObjectFlags::NEVER_OCCLUDER;
+    f[SKY] = ObjectFlags::ALWAYS_VISIBLE;
+    f
+}
+
+/// The viewing cell, in front of the glass.
+fn cell() -> Aabb {
+    Aabb::new(Vec3::new(0.0, -1.0, 0.5), Vec3::new(2.0, 1.0, 1.5))
+}
+
+/// The objects that random rays from `cell` see (the tracer's
+/// [`Tracer::seen_along`]).
+fn seen_by_rays(scene: &Scene, cell: &Aabb, rays: usize) -> ObjectSet {
+    let tracer = Tracer::new(scene);
+    let mut rng = Pcg64::seed_from_u64(15);
+    let mut seen = ObjectSet::new(scene.objects().len());
+    let mut along = Vec::new();
+    for _ in 0..rays {
+        let ray = Ray::new(uniform_point(&mut rng, cell), uniform_direction(&mut rng));
+        tracer.seen_along(&ray, &mut along);
+        for &o in &along {
+            seen.insert(o as usize);
+        }
+    }
+    seen
+}
+
+#[test]
+fn rays_see_through_glass_and_never_see_the_sky() {
+    let plain = gallery();
+    let glass = gallery().with_flags(&flags());
+    let seen = seen_by_rays(&plain, &cell(), 20_000);
+    assert!(seen.contains(GLASS) && !seen.contains(STATUE) && !seen.contains(SKY));
+    let seen = seen_by_rays(&glass, &cell(), 20_000);
+    assert!(seen.contains(GLASS) && seen.contains(STATUE) && seen.contains(WALL));
+    assert!(!seen.contains(SKY), "the sky is behind an opaque wall");
+}
+
+#[test]
+fn the_builder_keeps_what_is_seen_through_glass_and_the_sky_everywhere() {
+    let params = BuildParams {
+        view_box: Some(cell()),
+        max_depth: 6,
+        min_visible_triangles: 0,
+        ..BuildParams::default()
+    };
+    let leaves_holding = |scene: &Scene| {
+        let tracer = Tracer::new(scene);
+        let (tree, _) = build(scene, &tracer, &params, &|_| {}).unwrap();
+        tree.validate().unwrap();
+        let leaves: Vec<&ObjectSet> = tree
+            .nodes()
+            .iter()
+            .filter(|n| n.split.is_none())
+            .map(|n| &n.set)
+            .collect();
+        let holding = |o: usize| leaves.iter().filter(|s| s.contains(o)).count();
+        (leaves.len(), holding(STATUE), holding(SKY))
+    };
+    let (_, statue, sky) = leaves_holding(&gallery());
+    assert_eq!((statue, sky), (0, 0), "behind opaque glass nothing is seen");
+    let (leaves, statue, sky) = leaves_holding(&gallery().with_flags(&flags()));
+    assert!(statue > 0, "the statue is seen through the glass");
+    assert_eq!(sky, leaves, "the sky is in every leaf");
+}
+
+#[test]
+fn both_oracles_keep_what_is_behind_glass_and_the_sky() {
+    let plain = gallery();
+    let glass = gallery().with_flags(&flags());
+    for (scene, kept) in [(&plain, false), (&glass, true)] {
+        let oracle = Oracle::new(scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+        let v = oracle.cell(&cell(), None).visible;
+        assert_eq!(
+            (v.contains(STATUE), v.contains(SKY)),
+            (kept, kept),
+            "extended projections, flags {kept}"
+        );
+        // Shrinking (from a small cell): flagged, the sky is kept and the
+        // glass hides nothing.
+        if kept {
+            let shrink = ShrinkOracle::new(scene, ShrinkParams::default()).unwrap();
+            let small = Aabb::new(Vec3::new(0.8, -0.2, 0.8), Vec3::new(1.2, 0.2, 1.2));
+            let v = shrink.cell(&small).visible;
+            assert!(v.contains(SKY) && v.contains(STATUE), "shrinking");
+        }
+    }
+}
+
+#[test]
+fn flags_go_through_the_file_the_query_and_check() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("gallery.obj");
+    vis5d::scene::write_obj_file(&gallery(), &[], &model).unwrap();
+    let sidecar = dir.path().join("flags.json");
+    std::fs::write(
+        &sidecar,
+        r#"{"glass": ["never_occluder"], "sky": ["always_visible"]}"#,
+    )
+    .unwrap();
+    let v5d = dir.path().join("gallery.v5d");
+    let s = |p: &Path| p.to_str().unwrap().to_owned();
+    let out = vis5d(&[
+        "build",
+        &s(&model),
+        "--flags",
+        &s(&sidecar),
+        "--view-box",
+        "0,-1,0.5,2,1,1.5",
+        "--max-depth",
+        "6",
+        "-o",
+        &s(&v5d),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let pvs = vis5d::query::Pvs::load(&v5d).unwrap();
+    let flags: Vec<ObjectFlags> = pvs.objects().iter().map(|o| o.flags).collect();
+    assert_eq!(flags, flags_of_gallery());
+    // Looking at the glass from the cell: the statue and the sky.
+    let out = vis5d(&[
+        "query",
+        &s(&v5d),
+        "--pos",
+        "1,0,1",
+        "--dir",
+        "1,0,0",
+        "--json",
+        "--ids",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let rows: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let names: Vec<&str> = rows
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["id"].as_str().unwrap())
+        .collect();
+    assert!(
+        names.contains(&"statue") && names.contains(&"sky"),
+        "{names:?}"
+    );
+    let sky = rows
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["id"] == "sky")
+        .unwrap();
+    assert_eq!(sky["flags"], serde_json::json!(["always_visible"]));
+    // check reads the flags from the file: no violation, with the rays
+    // seeing through the glass.
+    let out = vis5d(&["check", &s(&model), &s(&v5d), "--json"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["violations"], 0, "{report}");
+    // A sidecar that names no object, or an unknown flag, is refused.
+    std::fs::write(&sidecar, r#"{"window": ["never_occluder"]}"#).unwrap();
+    let out = vis5d(&["build", &s(&model), "--flags", &s(&sidecar), "--dry-run"]);
+    assert!(!out.status.success());
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("flags.json") && err.contains("\"window\""),
+        "{err}"
+    );
+    std::fs::write(&sidecar, r#"{"glass": ["transparent"]}"#).unwrap();
+    let out = vis5d(&["build", &s(&model), "--flags", &s(&sidecar), "--dry-run"]);
+    let err = text(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("unknown flag"),
+        "{err}"
+    );
+}
+
+fn flags_of_gallery() -> Vec<ObjectFlags> {
+    flags().to_vec()
+}
