@@ -12,7 +12,7 @@
 #include <stdlib.h>
 
 // Object flag: in every set of the tree (a sky, what must never be
-// culled; `vis5d build --flags`).
+// culled; a glTF node's `extras.vis5d.flags`, `vis5d build --flags`).
 #define VIS5D_FLAG_ALWAYS_VISIBLE 1
 
 // Object flag: hides nothing, rays pass through it (glass, foliage).
@@ -125,7 +125,8 @@ enum Vis5dStatus vis5d_view_box(const struct Vis5dPvs *pvs, double *min, double 
 enum Vis5dStatus vis5d_up(const struct Vis5dPvs *pvs, float *up);
 
 // The id of object `object`: unique in the file (its name, `name#k`
-// where names repeat, or the id the build's `--ids` gave it);
+// where names repeat, the model's own (a glTF node's
+// `extras.vis5d.id`), or the id the build's `--ids` gave it);
 // NUL-terminated, valid while the handle lives; null for an index past
 // the count or a null handle.
 //

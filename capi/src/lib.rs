@@ -318,7 +318,8 @@ pub unsafe extern "C" fn vis5d_up(pvs: *const Vis5dPvs, up: *mut f32) -> Vis5dSt
 }
 
 /// The id of object `object`: unique in the file (its name, `name#k`
-/// where names repeat, or the id the build's `--ids` gave it);
+/// where names repeat, the model's own (a glTF node's
+/// `extras.vis5d.id`), or the id the build's `--ids` gave it);
 /// NUL-terminated, valid while the handle lives; null for an index past
 /// the count or a null handle.
 ///
@@ -333,7 +334,7 @@ pub unsafe extern "C" fn vis5d_object_id(pvs: *const Vis5dPvs, object: usize) ->
 }
 
 /// Object flag: in every set of the tree (a sky, what must never be
-/// culled; `vis5d build --flags`).
+/// culled; a glTF node's `extras.vis5d.flags`, `vis5d build --flags`).
 pub const VIS5D_FLAG_ALWAYS_VISIBLE: u8 = 1;
 
 /// Object flag: hides nothing, rays pass through it (glass, foliage).

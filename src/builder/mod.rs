@@ -470,7 +470,8 @@ pub fn to_file(
 /// The `.v5d` file of any `tree` built for `scene` (the sampled builder's,
 /// or the conservative bake's), its parameter text `params` (`key=value`
 /// lines), in `coding` (the smallest when `None`), with the scene's
-/// objects and their bounds.
+/// objects, their ids ([`Scene::ids`]: the model's own where it has
+/// them), flags and bounds.
 pub fn file_with_params(
     scene: &Scene,
     tree: VisTree,
@@ -486,9 +487,7 @@ pub fn file_with_params(
         objects: scene
             .objects()
             .iter()
-            .zip(crate::codec::default_ids(
-                scene.objects().iter().map(|o| o.name.as_str()),
-            ))
+            .zip(scene.ids())
             .map(|(o, id)| FileObject {
                 name: o.name.clone(),
                 id,

@@ -243,8 +243,11 @@ pub struct BuildArgs {
     /// The objects' ids, as the engine calls them: a JSON object from
     /// default ids to ids. An object's default id is its name, or, where
     /// names repeat, the name and its occurrence in the model (`crate#1`,
-    /// `crate#2`). Ids are stored in the .v5d (`query --json --ids`,
-    /// `Pvs::object_index`); unique, 1 to 1024 bytes, no NUL.
+    /// `crate#2`). A glTF node may give its own id (`"extras": {"vis5d":
+    /// {"id": "door-17"}}`); this file's ids replace the model's (its keys
+    /// are still the default ids). Ids are stored in the .v5d (`query
+    /// --json --ids`, `Pvs::object_index`); unique, 1 to 1024 bytes, no
+    /// NUL.
     #[arg(long, value_name = "IDS.json")]
     ids: Option<PathBuf>,
     /// Objects' flags, the overrides engines offer: a JSON object from
@@ -253,8 +256,10 @@ pub struct BuildArgs {
     /// `always_visible`: in every set, never tested (a sky, what must
     /// never be culled). `never_occluder`: rays pass through it (glass,
     /// foliage, fences): it is seen where a ray reaches it and hides
-    /// nothing. Honoured by the builder and the oracles, stored in the
-    /// .v5d (`query --json --ids` shows them; `vis5d check` honours them).
+    /// nothing. Added to the flags the model gives (a glTF node's
+    /// `"extras": {"vis5d": {"flags": ["never_occluder"]}}`). Honoured by
+    /// the builder and the oracles, stored in the .v5d (`query --json
+    /// --ids` shows them; `vis5d check` honours them).
     #[arg(long, value_name = "FLAGS.json")]
     flags: Option<PathBuf>,
 }
@@ -587,7 +592,9 @@ fn node_budget(scene: &Scene, max_nodes: u64) -> u64 {
 }
 
 /// The objects' ids with `--ids` applied (checked before the build), or
-/// `None` for the default ones.
+/// `None` for the scene's own ([`Scene::ids`]: the model's ids, else the
+/// default ones). The sidecar's keys are the default ids, whatever the
+/// model calls the objects; its ids replace the model's.
 fn object_ids(args: &BuildArgs, scene: &vis5d::scene::Scene) -> Result<Option<Vec<String>>> {
     let Some(path) = &args.ids else {
         return Ok(None);
@@ -601,8 +608,9 @@ fn object_ids(args: &BuildArgs, scene: &vis5d::scene::Scene) -> Result<Option<Ve
                 path.display()
             )
         })?;
-    let mut ids = codec::default_ids(scene.objects().iter().map(|o| o.name.as_str()));
-    codec::apply_user_ids(&mut ids, &user)
+    let defaults = codec::default_ids(scene.objects().iter().map(|o| o.name.as_str()));
+    let mut ids = scene.ids();
+    codec::replace_ids(&defaults, &mut ids, &user)
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     Ok(Some(ids))
 }

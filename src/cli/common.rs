@@ -519,8 +519,9 @@ pub fn coding_sizes(tree: &VisTree) -> Vec<CodingSize> {
         .collect()
 }
 
-/// The scene with the flags of the sidecar at `path` (`--flags`), checked
-/// before the build.
+/// The scene with the flags of the sidecar at `path` (`--flags`) added
+/// to those the model gives (a glTF node's `extras.vis5d.flags`),
+/// checked before the build.
 pub fn with_flags(path: Option<&Path>, scene: Scene) -> Result<Scene> {
     let Some(path) = path else {
         return Ok(scene);
@@ -536,7 +537,11 @@ pub fn with_flags(path: Option<&Path>, scene: Scene) -> Result<Scene> {
             )
         })?;
     let ids = vis5d::codec::default_ids(scene.objects().iter().map(|o| o.name.as_str()));
-    let flags = vis5d::codec::flags_from_names(&ids, &user)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let flags: Vec<_> = vis5d::codec::flags_from_names(&ids, &user)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
+        .into_iter()
+        .zip(scene.objects())
+        .map(|(f, o)| f.union(o.flags))
+        .collect();
     Ok(scene.with_flags(&flags))
 }

@@ -152,7 +152,8 @@ pub struct OracleArgs {
     up: vis5d::geom::Up,
     /// Objects' flags, as for `vis5d build --flags`: a JSON object from
     /// default ids to lists of flags (`always_visible`: kept;
-    /// `never_occluder`: hides nothing).
+    /// `never_occluder`: hides nothing), added to those the model gives
+    /// (a glTF node's `extras.vis5d.flags`).
     #[arg(long = "flags", value_name = "FLAGS.json")]
     object_flags: Option<PathBuf>,
     /// The view cell: a box of viewpoints, x0,y0,z0,x1,y1,z1 (world

@@ -52,9 +52,10 @@ pub struct QueryArgs {
     #[arg(long)]
     json: bool,
     /// Print the objects' ids instead of their names (unique: the name,
-    /// `name#k` where names repeat, or the build's `--ids`); with --json,
-    /// each object as {"index", "id", "name", "flags"} (flags: the build's
-    /// `--flags`, a list of names, omitted when empty).
+    /// `name#k` where names repeat, the model's own id (a glTF node's
+    /// `extras.vis5d.id`) or the build's `--ids`); with --json, each
+    /// object as {"index", "id", "name", "flags"} (flags: the model's and
+    /// the build's `--flags`, a list of names, omitted when empty).
     #[arg(long, conflicts_with = "triangles")]
     ids: bool,
     /// Also print, per object, the ranges of its triangles to draw

@@ -5,10 +5,11 @@
 //! shifts, and its name may repeat (`["floor", "crate", "crate"]`). Its id
 //! is unique in the file: by default its name when the name is unique,
 //! else the name and its occurrence, `crate#1`, `crate#2` (in scene
-//! order; more `#` where that is someone else's name). A build can replace
-//! any default id by one the user supplies (`vis5d build --ids
-//! FILE.json`, a JSON object from default ids to ids: what the engine
-//! calls the objects).
+//! order; more `#` where that is someone else's name). The model may give
+//! an object its own id (a glTF node's `extras.vis5d.id`:
+//! [`crate::scene::Object::id`]), and a build can replace any id by one
+//! the user supplies (`vis5d build --ids FILE.json`, a JSON object from
+//! default ids to ids: what the engine calls the objects), in that order.
 
 use std::collections::{HashMap, HashSet};
 
@@ -53,6 +54,12 @@ pub fn default_ids<'a>(names: impl IntoIterator<Item = &'a str>) -> Vec<String> 
         .collect()
 }
 
+/// Whether `id` may be an object's id: 1 to [`MAX_ID_BYTES`] bytes, no
+/// NUL byte.
+pub fn is_valid_id(id: &str) -> bool {
+    !id.is_empty() && id.len() <= MAX_ID_BYTES && !id.contains('\0')
+}
+
 /// Why user ids cannot be applied.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum IdError {
@@ -74,7 +81,25 @@ pub enum IdError {
 /// object, and the ids must stay unique, non-empty, at most
 /// [`MAX_ID_BYTES`] long and free of NUL bytes.
 pub fn apply_user_ids(ids: &mut [String], user: &HashMap<String, String>) -> Result<(), IdError> {
-    let index: HashMap<&str, usize> = ids
+    let defaults = ids.to_vec();
+    replace_ids(&defaults, ids, user)
+}
+
+/// As [`apply_user_ids`], for objects whose ids need not be their default
+/// ids (a model's own ids applied already): `user`'s keys name objects by
+/// their default ids `defaults` ([`default_ids`], one per object), and
+/// its values replace the same objects' `ids`. Every key must name an
+/// object, and the ids must stay valid ([`is_valid_id`]) and unique.
+///
+/// # Panics
+/// When `defaults` and `ids` differ in length.
+pub fn replace_ids(
+    defaults: &[String],
+    ids: &mut [String],
+    user: &HashMap<String, String>,
+) -> Result<(), IdError> {
+    assert_eq!(defaults.len(), ids.len(), "one default id per object");
+    let index: HashMap<&str, usize> = defaults
         .iter()
         .enumerate()
         .map(|(i, s)| (s.as_str(), i))
@@ -87,7 +112,7 @@ pub fn apply_user_ids(ids: &mut [String], user: &HashMap<String, String>) -> Res
             .get(key.as_str())
             .ok_or_else(|| IdError::Unknown(key.clone()))?;
         let id = &user[key];
-        if id.is_empty() || id.len() > MAX_ID_BYTES || id.contains('\0') {
+        if !is_valid_id(id) {
             return Err(IdError::Invalid(id.clone()));
         }
         changes.push((i, id.clone()));
@@ -95,13 +120,23 @@ pub fn apply_user_ids(ids: &mut [String], user: &HashMap<String, String>) -> Res
     for (i, id) in changes {
         ids[i] = id;
     }
-    let mut seen = HashSet::new();
-    for id in ids.iter() {
-        if !seen.insert(id.as_str()) {
-            return Err(IdError::Duplicate(id.clone()));
-        }
+    match first_duplicate(ids) {
+        Some((_, j)) => Err(IdError::Duplicate(ids[j].clone())),
+        None => Ok(()),
     }
-    Ok(())
+}
+
+/// The first pair `(i, j)`, `i < j`, of equal ids (the smallest `j`), if
+/// any.
+pub fn first_duplicate(ids: &[String]) -> Option<(usize, usize)> {
+    let mut seen: HashMap<&str, usize> = HashMap::new();
+    for (j, id) in ids.iter().enumerate() {
+        if let Some(&i) = seen.get(id.as_str()) {
+            return Some((i, j));
+        }
+        seen.insert(id, j);
+    }
+    None
 }
 
 #[cfg(test)]
@@ -129,7 +164,22 @@ mod tests {
             apply_user_ids(&mut ids.clone(), &unknown),
             Err(IdError::Unknown("crate".into()))
         );
+        // Keys stay the default ids when the ids are a model's own.
+        let defaults = default_ids(["floor", "door"]);
+        let mut ids: Vec<String> = ["floor", "door-17"].map(String::from).into();
+        let user: HashMap<String, String> = [("door".to_owned(), "d".to_owned())].into();
+        replace_ids(&defaults, &mut ids, &user).unwrap();
+        assert_eq!(ids, ["floor", "d"]);
+        let by_model_id: HashMap<String, String> = [("d".to_owned(), "x".to_owned())].into();
+        assert_eq!(
+            replace_ids(&defaults, &mut ids, &by_model_id),
+            Err(IdError::Unknown("d".into()))
+        );
+        assert_eq!(first_duplicate(&default_ids(["a", "b"])), None);
+        let three: Vec<String> = ["a", "b", "a"].map(String::from).into();
+        assert_eq!(first_duplicate(&three), Some((0, 2)));
         for bad in ["", "a\0b", &"x".repeat(MAX_ID_BYTES + 1)] {
+            assert!(!is_valid_id(bad));
             let user: HashMap<String, String> = [("floor".to_owned(), bad.to_owned())].into();
             assert!(matches!(
                 apply_user_ids(&mut ids.clone(), &user),

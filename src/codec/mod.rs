@@ -18,7 +18,9 @@ pub use codec_file::{
 };
 pub(crate) use codec_file::{VarintError, get_varint, put_varint};
 pub use codec_flags::{FlagError, ObjectFlags, flags_from_names};
-pub use codec_ids::{IdError, MAX_ID_BYTES, apply_user_ids, default_ids};
+pub use codec_ids::{
+    IdError, MAX_ID_BYTES, apply_user_ids, default_ids, first_duplicate, is_valid_id, replace_ids,
+};
 pub use codec_tree::{CodeSize, Coding, DecodeLimits, UnknownCoding, code_size, decode, encode};
 
 /// The parameter key that names how a file's tree was made; a file

@@ -8,6 +8,21 @@
 //! Triangle lists, strips and fans are read; points and lines are skipped
 //! and counted.
 //!
+//! Ids and flags (issue 15): an object's node may say what vis5d should
+//! call it and what it is to visibility, in its `extras`:
+//! `"extras": {"vis5d": {"id": "door-17", "flags": ["never_occluder"]}}`.
+//! Both keys are optional, other keys of `extras` are ignored, and only
+//! the nodes that make objects are read (a parent's `vis5d` is not
+//! inherited). The id replaces the object's default id in the `.v5d`
+//! ([`super::Object::id`], [`Scene::ids`]; `vis5d build --ids` may still
+//! replace it); the flags (`always_visible`, `never_occluder`:
+//! [`super::ObjectFlags::NAMES`]) are the object's when loaded
+//! (`vis5d build --flags` adds more). A `vis5d` value that is not such an
+//! object, a key other than those two, a flag vis5d does not know, an id
+//! that is empty, longer than [`crate::codec::MAX_ID_BYTES`] bytes or
+//! holds a NUL, and two objects with one id are errors naming the file
+//! and the node.
+//!
 //! The `gltf` crate's accessor reader assumes well-formed input (it
 //! debug-asserts element sizes and computes ranges without overflow
 //! checks), so every accessor is checked here first: type, count, stride and
@@ -21,7 +36,7 @@ use glam::{DMat4, DVec3};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
 
-use super::{LoadOptions, Scene, SceneBuilder, SceneError, SceneFormat};
+use super::{LoadOptions, ObjectFlags, Scene, SceneBuilder, SceneError, SceneFormat};
 
 /// Parses glTF or GLB `bytes` read from `path`; side-by-side buffers are
 /// read relative to `path`'s folder.
@@ -90,7 +105,9 @@ pub(super) fn load_gltf(
             .name()
             .or(mesh.name())
             .map_or_else(|| format!("node{}", node.index()), str::to_owned);
-        builder.begin_object(name.clone());
+        let (id, flags) = node_extras(path, &node, &name)?;
+        builder.begin_object_with(name.clone(), id, flags);
+        builder.label_object(format!("node {} {name:?}", node.index()));
         for prim in mesh.primitives() {
             let mode = prim.mode();
             if !matches!(
@@ -159,6 +176,74 @@ pub(super) fn load_gltf(
     // makes the scene's own triangles.
     drop(buffers);
     builder.finish(path)
+}
+
+/// The id and flags a node's `extras.vis5d` gives (module docs); `name`
+/// is the object's, for messages.
+fn node_extras(
+    path: &Path,
+    node: &gltf::Node,
+    name: &str,
+) -> Result<(Option<String>, ObjectFlags), SceneError> {
+    let at = format!("node {} {name:?}: extras.vis5d", node.index());
+    let syntax = |message: String| SceneError::Syntax {
+        path: path.to_owned(),
+        line: 0,
+        message,
+    };
+    let Some(raw) = node.extras() else {
+        return Ok((None, ObjectFlags::NONE));
+    };
+    let extras: serde_json::Value = serde_json::from_str(raw.get()).map_err(|e| {
+        syntax(format!(
+            "node {}: cannot read its extras: {e}",
+            node.index()
+        ))
+    })?;
+    let Some(ours) = extras.get("vis5d") else {
+        return Ok((None, ObjectFlags::NONE));
+    };
+    let shape =
+        "{\"id\": \"...\", \"flags\": [\"always_visible\", \"never_occluder\"]}, both optional";
+    let ours = ours
+        .as_object()
+        .ok_or_else(|| syntax(format!("{at} must be an object {shape}, not {ours}")))?;
+    if let Some(key) = ours.keys().find(|k| !matches!(k.as_str(), "id" | "flags")) {
+        return Err(syntax(format!(
+            "{at} has the key {key:?}: it may hold only {shape}"
+        )));
+    }
+    let id = match ours.get("id") {
+        None => None,
+        Some(serde_json::Value::String(id)) if crate::codec::is_valid_id(id) => Some(id.clone()),
+        Some(serde_json::Value::String(id)) => {
+            return Err(SceneError::Id {
+                path: path.to_owned(),
+                message: format!(
+                    "{at}.id {id:?} is empty, longer than {} bytes or holds a NUL byte",
+                    crate::codec::MAX_ID_BYTES
+                ),
+            });
+        }
+        Some(other) => return Err(syntax(format!("{at}.id must be a string, not {other}"))),
+    };
+    let mut flags = ObjectFlags::NONE;
+    if let Some(list) = ours.get("flags") {
+        let list = list.as_array().ok_or_else(|| {
+            syntax(format!(
+                "{at}.flags must be a list of flag names, not {list}"
+            ))
+        })?;
+        for f in list {
+            let flag = f.as_str().and_then(ObjectFlags::from_name).ok_or_else(|| {
+                syntax(format!(
+                    "{at}.flags: unknown flag {f} (the flags are always_visible and never_occluder)"
+                ))
+            })?;
+            flags = flags.union(flag);
+        }
+    }
+    Ok((id, flags))
 }
 
 /// The triangles of a list, strip or fan (strip winding alternation is

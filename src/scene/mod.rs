@@ -15,7 +15,8 @@
 //! Invariants kept by [`SceneBuilder::finish`] and checked by
 //! [`Scene::validate`]: every coordinate is finite, every triangle has
 //! non-zero area, every object has at least one triangle, object ranges tile
-//! the triangle array in order, and the scene has at least one triangle.
+//! the triangle array in order, the scene has at least one triangle, and
+//! the objects' ids ([`Scene::ids`]) are valid and unique.
 
 mod load_gltf;
 mod load_obj;
@@ -46,6 +47,11 @@ pub type Triangle = [Vec3; 3];
 pub struct Object {
     /// The name from the file (OBJ `o`/`g` name, glTF node or mesh name).
     pub name: String,
+    /// The model's own id for the object (a glTF node's
+    /// `extras.vis5d.id`), which replaces its default id in a `.v5d`
+    /// ([`Scene::ids`]); `None` for most objects, and for every object of
+    /// an OBJ file.
+    pub id: Option<String>,
     /// The object's triangles, as a range of [`Scene::triangles`].
     pub triangles: Range<u32>,
     /// The bounding box of the object's triangles.
@@ -53,8 +59,9 @@ pub struct Object {
     /// The total surface area (one side), in squared scene units.
     pub area: f64,
     /// What the object is to visibility beyond its triangles (always
-    /// visible, never an occluder): none when loaded, set by
-    /// [`Scene::with_flags`] (`vis5d build --flags`).
+    /// visible, never an occluder): the model's (a glTF node's
+    /// `extras.vis5d.flags`) when loaded, set by [`Scene::with_flags`]
+    /// (`vis5d build --flags` adds a sidecar's to the model's).
     pub flags: ObjectFlags,
 }
 
@@ -197,6 +204,15 @@ pub enum SceneError {
     TooLarge {
         /// The scene file.
         path: PathBuf,
+    },
+    /// An object's id from the model is not valid, or two objects would
+    /// have one id ([`Scene::ids`]).
+    #[error("{}: {message}", path.display())]
+    Id {
+        /// The scene file.
+        path: PathBuf,
+        /// Which objects (glTF: which nodes), and what is wrong.
+        message: String,
     },
     /// The scene's size is outside what vis5d's f32 pipeline resolves.
     #[error(
@@ -361,7 +377,7 @@ impl Scene {
     pub fn translated(&self, offset: DVec3, name: &Path) -> Result<Scene, SceneError> {
         let mut b = SceneBuilder::new(self.format);
         for (i, o) in self.objects.iter().enumerate() {
-            b.begin_object(o.name.clone());
+            b.begin_object_with(o.name.clone(), o.id.clone(), o.flags);
             for t in self.object_triangles(i) {
                 b.push_triangle_f64(t.map(|v| self.frame.to_world(v) + offset))
                     .map_err(|bad| SceneError::NonFinite {
@@ -418,6 +434,14 @@ impl Scene {
             o.flags = f;
         }
         self
+    }
+
+    /// The objects' ids, as a `.v5d` stores them: each object's own id
+    /// from the model ([`Object::id`]) where it has one, else its default
+    /// id ([`crate::codec::default_ids`] over the names: the name, or
+    /// `name#k` where names repeat). Unique (checked at load).
+    pub fn ids(&self) -> Vec<String> {
+        object_ids(&self.objects)
     }
 
     /// Whether every object occludes (no [`ObjectFlags::NEVER_OCCLUDER`]).
@@ -522,8 +546,28 @@ impl Scene {
         if bounds != self.bounds {
             return Err("scene bounds are not the union of object bounds".into());
         }
+        if let Some((i, o)) = self.objects.iter().enumerate().find(|(_, o)| {
+            o.id.as_deref()
+                .is_some_and(|id| !crate::codec::is_valid_id(id))
+        }) {
+            return Err(format!("object {i} ({:?}) has an invalid id", o.name));
+        }
+        if let Some((i, j)) = crate::codec::first_duplicate(&self.ids()) {
+            return Err(format!("objects {i} and {j} have one id"));
+        }
         Ok(())
     }
+}
+
+/// The ids of `objects` ([`Scene::ids`]).
+fn object_ids(objects: &[Object]) -> Vec<String> {
+    let mut ids = crate::codec::default_ids(objects.iter().map(|o| o.name.as_str()));
+    for (id, o) in ids.iter_mut().zip(objects) {
+        if let Some(own) = &o.id {
+            id.clone_from(own);
+        }
+    }
+    ids
 }
 
 /// Loads a scene from an OBJ, glTF or GLB file, chosen by extension.

@@ -9,8 +9,8 @@ use std::path::Path;
 use glam::DVec3;
 
 use super::{
-    LoadReport, MAX_EXTENT, MIN_EXTENT, Object, Scene, SceneError, SceneFormat, Triangle,
-    is_degenerate, triangle_area,
+    LoadReport, MAX_EXTENT, MIN_EXTENT, Object, ObjectFlags, Scene, SceneError, SceneFormat,
+    Triangle, is_degenerate, triangle_area,
 };
 use crate::geom::frame::MAX_DIAGONALS;
 use crate::geom::{Aabb, Frame};
@@ -31,9 +31,24 @@ pub struct NonFinite(pub f64);
 pub struct SceneBuilder {
     format: SceneFormat,
     world: Vec<[DVec3; 3]>,
-    /// Object names and their ranges of `world`, in order.
-    groups: Vec<(String, Range<usize>)>,
+    /// The objects begun, in order.
+    groups: Vec<Group>,
     skipped_non_triangles: usize,
+}
+
+/// An object being built.
+#[derive(Debug)]
+struct Group {
+    name: String,
+    /// Its triangles, a range of `world`.
+    range: Range<usize>,
+    /// The model's own id for it.
+    id: Option<String>,
+    /// The flags the model gives it.
+    flags: ObjectFlags,
+    /// How messages name it (`node 5 "door"`), when not by its index and
+    /// name.
+    label: Option<String>,
 }
 
 impl SceneBuilder {
@@ -51,13 +66,41 @@ impl SceneBuilder {
     /// An object that ends with no triangle of non-zero area is dropped
     /// (and reported).
     pub fn begin_object(&mut self, name: impl Into<String>) {
+        self.begin_object_with(name, None, ObjectFlags::NONE);
+    }
+
+    /// As [`begin_object`](Self::begin_object), with what the model says
+    /// of the object beyond its name: its own id (a glTF node's
+    /// `extras.vis5d.id`; [`Object::id`]) and its flags. The id must be
+    /// valid ([`crate::codec::is_valid_id`]) and the scene's ids unique
+    /// ([`Scene::ids`]): [`finish`](Self::finish) checks both.
+    pub fn begin_object_with(
+        &mut self,
+        name: impl Into<String>,
+        id: Option<String>,
+        flags: ObjectFlags,
+    ) {
         let start = self.world.len();
-        self.groups.push((name.into(), start..start));
+        self.groups.push(Group {
+            name: name.into(),
+            range: start..start,
+            id,
+            flags,
+            label: None,
+        });
+    }
+
+    /// How messages name the object being built (a glTF loader: `node 5
+    /// "door"`), instead of by its index and name.
+    pub fn label_object(&mut self, label: impl Into<String>) {
+        if let Some(g) = self.groups.last_mut() {
+            g.label = Some(label.into());
+        }
     }
 
     /// The name of the object being built, if any.
     pub fn current_object(&self) -> Option<&str> {
-        self.groups.last().map(|(name, _)| name.as_str())
+        self.groups.last().map(|g| g.name.as_str())
     }
 
     /// Adds a triangle, in world coordinates, to the current object
@@ -81,7 +124,7 @@ impl SceneBuilder {
         self.groups
             .last_mut()
             .expect("an object was begun above")
-            .1
+            .range
             .end += 1;
         Ok(())
     }
@@ -144,7 +187,15 @@ impl SceneBuilder {
         let mut triangles = Vec::with_capacity(self.world.len());
         let mut area_cdf = Vec::with_capacity(self.world.len());
         let mut objects = Vec::with_capacity(self.groups.len());
-        for (name, range) in self.groups {
+        let mut labels = Vec::with_capacity(self.groups.len());
+        for group in self.groups {
+            let Group {
+                name,
+                range,
+                id,
+                flags,
+                label,
+            } = group;
             let start = triangles.len() as u64;
             let mut area = 0.0;
             let mut bounds = Aabb::EMPTY;
@@ -171,12 +222,14 @@ impl SceneBuilder {
                     path: path.to_owned(),
                 });
             }
+            labels.push(label);
             objects.push(Object {
                 name,
+                id,
                 triangles: start as u32..end as u32,
                 bounds,
                 area,
-                flags: super::ObjectFlags::NONE,
+                flags,
             });
         }
         drop(self.world);
@@ -195,6 +248,7 @@ impl SceneBuilder {
             .filter(|&(_, n)| n > 1)
             .map(|(name, n)| (name.to_owned(), n))
             .collect();
+        check_ids(path, &objects, &labels)?;
         let bounds = objects.iter().fold(Aabb::EMPTY, |b, o| b.union(&o.bounds));
         Ok(Scene {
             triangles,
@@ -206,6 +260,44 @@ impl SceneBuilder {
             report,
         })
     }
+}
+
+/// Refuses a model id that is not valid and two objects with one id
+/// ([`Scene::ids`]), naming the objects by `labels` where given.
+fn check_ids(path: &Path, objects: &[Object], labels: &[Option<String>]) -> Result<(), SceneError> {
+    let what = |i: usize| {
+        labels[i]
+            .clone()
+            .unwrap_or_else(|| format!("object {i} {:?}", objects[i].name))
+    };
+    for (i, o) in objects.iter().enumerate() {
+        if let Some(id) = &o.id
+            && !crate::codec::is_valid_id(id)
+        {
+            return Err(SceneError::Id {
+                path: path.to_owned(),
+                message: format!(
+                    "{}: the id {id:?} is empty, longer than {} bytes or holds a NUL byte",
+                    what(i),
+                    crate::codec::MAX_ID_BYTES
+                ),
+            });
+        }
+    }
+    let ids = super::object_ids(objects);
+    if let Some((i, j)) = crate::codec::first_duplicate(&ids) {
+        return Err(SceneError::Id {
+            path: path.to_owned(),
+            message: format!(
+                "{} and {} would both have the id {:?} (an object's id is the model's id for \
+                 it, else its name, or name#k where names repeat): give one of them another id",
+                what(i),
+                what(j),
+                ids[i]
+            ),
+        });
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -281,6 +373,44 @@ mod tests {
             .unwrap();
         let e = b.finish(Path::new("huge.obj")).unwrap_err();
         assert!(matches!(e, SceneError::Extent { .. }), "{e}");
+    }
+
+    #[test]
+    fn model_ids_replace_default_ids_and_must_be_valid_and_unique() {
+        let build = |ids: [Option<&str>; 3]| {
+            let mut b = SceneBuilder::new(SceneFormat::Procedural);
+            for (k, (name, id)) in ["a", "b", "b"].into_iter().zip(ids).enumerate() {
+                b.begin_object_with(name, id.map(str::to_owned), ObjectFlags::NEVER_OCCLUDER);
+                if k == 2 {
+                    b.label_object("node 7 \"b\"");
+                }
+                let o = Vec3::splat(k as f32);
+                b.push_triangle([o, o + Vec3::X, o + Vec3::Y]).unwrap();
+            }
+            b.finish(Path::new("m.gltf"))
+        };
+        let s = build([None, Some("door"), None]).unwrap();
+        s.validate().unwrap();
+        assert_eq!(s.ids(), ["a", "door", "b#2"]);
+        assert!(s.objects().iter().all(|o| !o.flags.occludes()));
+        for (ids, want) in [
+            (
+                [Some("x"), Some("x"), None],
+                "m.gltf: object 0 \"a\" and object 1 \"b\" would both have the id \"x\"",
+            ),
+            (
+                [None, Some("b#2"), None],
+                "m.gltf: object 1 \"b\" and node 7 \"b\" would both have the id \"b#2\"",
+            ),
+            (
+                [Some(""), None, None],
+                "m.gltf: object 0 \"a\": the id \"\" is empty",
+            ),
+        ] {
+            let e = build(ids).unwrap_err();
+            assert!(matches!(e, SceneError::Id { .. }), "{e}");
+            assert!(e.to_string().starts_with(want), "{e}");
+        }
     }
 
     #[test]

@@ -234,3 +234,104 @@ fn flags_go_through_the_file_the_query_and_check() {
 fn flags_of_gallery() -> Vec<ObjectFlags> {
     flags().to_vec()
 }
+
+/// The gallery as a glTF file in `dir`, node `i` its object `i`;
+/// `extras[i]` is node `i`'s `extras` (JSON null: none).
+fn gallery_gltf(dir: &tempfile::TempDir, extras: [serde_json::Value; 4]) -> std::path::PathBuf {
+    use crate::gltf_load::{Mesh, document, write_embedded};
+    let scene = gallery();
+    let names = ["glass", "statue", "wall", "sky"];
+    let meshes: Vec<Mesh> = (0..4)
+        .map(|o| Mesh {
+            name: Some(names[o]),
+            positions: scene
+                .object_triangles(o)
+                .iter()
+                .flatten()
+                .map(|v| v.to_array())
+                .collect(),
+            indices: None,
+            mode: 4,
+        })
+        .collect();
+    let nodes: Vec<serde_json::Value> = extras
+        .into_iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let mut node = serde_json::json!({"mesh": i, "name": names[i]});
+            if !e.is_null() {
+                node["extras"] = e;
+            }
+            node
+        })
+        .collect();
+    let (doc, bin) = document(
+        &meshes,
+        serde_json::json!(nodes),
+        serde_json::json!([{"nodes": [0, 1, 2, 3]}]),
+    );
+    write_embedded(dir, "gallery.gltf", doc, &bin)
+}
+
+/// Flags from a glTF's node extras are honoured as a sidecar's are: by
+/// the oracles (on the loaded scene), the builder, the file and `vis5d
+/// check`; a sidecar's flags are added to them.
+#[test]
+fn flags_from_gltf_extras_are_honoured_and_a_sidecar_adds_to_them() {
+    use serde_json::{Value, json};
+    let dir = tempfile::tempdir().unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_owned();
+    let glass = json!({"vis5d": {"flags": ["never_occluder"]}});
+    let sky = json!({"vis5d": {"flags": ["always_visible"]}});
+    let model = gallery_gltf(&dir, [glass.clone(), Value::Null, Value::Null, sky]);
+    let scene = vis5d::scene::load(&model).unwrap();
+    let flags: Vec<ObjectFlags> = scene.objects().iter().map(|o| o.flags).collect();
+    assert_eq!(flags, flags_of_gallery());
+    let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    let v = oracle.cell(&cell(), None).visible;
+    assert!(
+        v.contains(STATUE) && v.contains(SKY),
+        "extended projections"
+    );
+    let v5d = dir.path().join("gallery.v5d");
+    let build = |extra: &[&str]| {
+        let (m, o) = (s(&model), s(&v5d));
+        let mut args = vec![
+            "build",
+            &m,
+            "--view-box",
+            "0,-1,0.5,2,1,1.5",
+            "--max-depth",
+            "6",
+            "-o",
+            &o,
+        ];
+        args.extend(extra);
+        let out = vis5d(&args);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        vis5d::query::Pvs::load(&v5d)
+            .unwrap()
+            .objects()
+            .iter()
+            .map(|o| o.flags)
+            .collect::<Vec<ObjectFlags>>()
+    };
+    assert_eq!(build(&[]), flags_of_gallery());
+    let out = vis5d(&["check", &s(&model), &s(&v5d), "--json"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["violations"], 0, "{report}");
+    // The model (written again, at the same path) flags the glass only;
+    // the sidecar the sky, and the glass again: the union.
+    let again = gallery_gltf(&dir, [glass, Value::Null, Value::Null, Value::Null]);
+    assert_eq!(again, model);
+    let sidecar = dir.path().join("flags.json");
+    std::fs::write(
+        &sidecar,
+        r#"{"sky": ["always_visible"], "glass": ["never_occluder"]}"#,
+    )
+    .unwrap();
+    assert_eq!(build(&["--flags", &s(&sidecar)]), flags_of_gallery());
+    std::fs::write(&sidecar, r#"{"sky": ["always_visible"]}"#).unwrap();
+    assert_eq!(build(&["--flags", &s(&sidecar)]), flags_of_gallery());
+}

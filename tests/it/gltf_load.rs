@@ -9,12 +9,12 @@ use serde_json::{Value, json};
 use vis5d::scene::{self, Scene, SceneError};
 
 /// One mesh of a test file: one primitive.
-struct Mesh {
-    name: Option<&'static str>,
-    positions: Vec<[f32; 3]>,
-    indices: Option<Vec<u32>>,
+pub(crate) struct Mesh {
+    pub name: Option<&'static str>,
+    pub positions: Vec<[f32; 3]>,
+    pub indices: Option<Vec<u32>>,
     /// glTF primitive mode (4 = triangles, 5 = strip, 6 = fan, 0 = points).
-    mode: u32,
+    pub mode: u32,
 }
 
 fn tri_mesh(name: Option<&'static str>) -> Mesh {
@@ -33,7 +33,7 @@ fn tri_mesh(name: Option<&'static str>) -> Mesh {
 
 /// The glTF JSON (without `buffers[0].uri`) and the binary buffer for
 /// `meshes`, `nodes` and `scenes`.
-fn document(meshes: &[Mesh], nodes: Value, scenes: Value) -> (Value, Vec<u8>) {
+pub(crate) fn document(meshes: &[Mesh], nodes: Value, scenes: Value) -> (Value, Vec<u8>) {
     let mut bin = Vec::new();
     let (mut views, mut accessors, mut jmeshes) = (vec![], vec![], vec![]);
     for m in meshes {
@@ -93,7 +93,7 @@ fn document(meshes: &[Mesh], nodes: Value, scenes: Value) -> (Value, Vec<u8>) {
 }
 
 /// Writes `doc` with its buffer embedded as a data URI.
-fn write_embedded(
+pub(crate) fn write_embedded(
     dir: &tempfile::TempDir,
     name: &str,
     mut doc: Value,
@@ -657,4 +657,237 @@ fn one_fingerprint_whatever_the_format_and_from_engine_buffers() {
         fingerprint_meshes(&[(&p, &[0, 0, 1])], Up::Z),
         Err(MeshError::Empty)
     );
+}
+
+/// Four objects: "door" (node 0) with a vis5d id and flag, two "crate"s
+/// (nodes 1 and 2; the first's extras hold only other keys, the second a
+/// flag), "wall" (node 3) with `extras` that are not an object.
+fn with_extras() -> (Value, Vec<u8>) {
+    let mut meshes = Vec::new();
+    for k in 0..4 {
+        let mut m = tri_mesh(None);
+        for p in &mut m.positions {
+            p[0] += 2.0 * k as f32;
+        }
+        meshes.push(m);
+    }
+    let nodes = json!([
+        {"name": "door", "mesh": 0,
+         "extras": {"vis5d": {"id": "door-17", "flags": ["never_occluder"]}, "author": "x"}},
+        {"name": "crate", "mesh": 1, "extras": {"exporter": {"id": 5}}},
+        {"name": "crate", "mesh": 2, "extras": {"vis5d": {"flags": ["always_visible"]}}},
+        {"name": "wall", "mesh": 3, "extras": "just text"}
+    ]);
+    document(&meshes, nodes, json!([{"nodes": [0, 1, 2, 3]}]))
+}
+
+/// A glTF node's `extras.vis5d` gives the object's id and flags; other
+/// extras are ignored, and a glTF without them loads as before.
+#[test]
+fn node_extras_give_ids_and_flags() {
+    use vis5d::scene::ObjectFlags;
+    let dir = tempfile::tempdir().unwrap();
+    let (doc, bin) = with_extras();
+    let s = scene::load(write_embedded(&dir, "x.gltf", doc, &bin)).unwrap();
+    s.validate().unwrap();
+    let got: Vec<(Option<&str>, ObjectFlags)> = s
+        .objects()
+        .iter()
+        .map(|o| (o.id.as_deref(), o.flags))
+        .collect();
+    assert_eq!(
+        got,
+        [
+            (Some("door-17"), ObjectFlags::NEVER_OCCLUDER),
+            (None, ObjectFlags::NONE),
+            (None, ObjectFlags::ALWAYS_VISIBLE),
+            (None, ObjectFlags::NONE),
+        ]
+    );
+    assert_eq!(s.ids(), ["door-17", "crate#1", "crate#2", "wall"]);
+    // Without extras: no ids, no flags, the default ids.
+    let (doc, bin) = hierarchy();
+    let plain = scene::load(write_embedded(&dir, "h.gltf", doc, &bin)).unwrap();
+    assert!(
+        plain
+            .objects()
+            .iter()
+            .all(|o| o.id.is_none() && o.flags == ObjectFlags::NONE)
+    );
+    assert_eq!(plain.ids(), ["parent", "meshB", "node2"]);
+}
+
+/// The model's ids and flags reach the `.v5d` of `build` and `build
+/// --conservative`; `--ids` replaces them (its keys still the default
+/// ids) and `--flags` adds to them.
+#[test]
+fn extras_ids_and_flags_reach_the_file_and_sidecars_override_and_add() {
+    use vis5d::query::Pvs;
+    use vis5d::scene::ObjectFlags;
+    let dir = tempfile::tempdir().unwrap();
+    let (doc, bin) = with_extras();
+    let model = write_embedded(&dir, "x.gltf", doc, &bin);
+    let s = |p: &std::path::Path| p.to_str().unwrap().to_owned();
+    let v5d = dir.path().join("x.v5d");
+    let table = |pvs: &Pvs| -> Vec<(String, ObjectFlags)> {
+        pvs.objects()
+            .iter()
+            .map(|o| (o.id.clone(), o.flags))
+            .collect()
+    };
+    let (n, a) = (ObjectFlags::NEVER_OCCLUDER, ObjectFlags::ALWAYS_VISIBLE);
+    let none = ObjectFlags::NONE;
+    for method in [
+        &["--max-depth", "2"][..],
+        &["--conservative", "--max-depth", "1"],
+    ] {
+        let mut args = vec!["build".to_owned(), s(&model), "-o".into(), s(&v5d)];
+        args.extend(method.iter().map(|a| a.to_string()));
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = crate::vis5d(&args);
+        assert!(out.status.success(), "{}", crate::text(&out.stderr));
+        let pvs = Pvs::load(&v5d).unwrap();
+        let want = [
+            ("door-17", n),
+            ("crate#1", none),
+            ("crate#2", a),
+            ("wall", none),
+        ]
+        .map(|(i, f)| (i.to_owned(), f));
+        assert_eq!(table(&pvs), want, "{method:?}");
+        assert_eq!(pvs.object_index("door-17"), Some(0));
+        // `query --json --ids` lists them (from outside the view box:
+        // every object in the frustum).
+        let out = crate::vis5d(&[
+            "query",
+            &s(&v5d),
+            "--pos",
+            "3.5,-3,0.5",
+            "--dir",
+            "0,1,0",
+            "--fov",
+            "120",
+            "--json",
+            "--ids",
+        ]);
+        assert!(out.status.success(), "{}", crate::text(&out.stderr));
+        let rows: Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(
+            rows,
+            json!([
+                {"index": 0, "id": "door-17", "name": "door", "flags": ["never_occluder"]},
+                {"index": 1, "id": "crate#1", "name": "crate"},
+                {"index": 2, "id": "crate#2", "name": "crate", "flags": ["always_visible"]},
+                {"index": 3, "id": "wall", "name": "wall"},
+            ]),
+            "{method:?}"
+        );
+    }
+    // Sidecars: ids keyed by the default ids replace the model's; flags
+    // are added to the model's.
+    let ids = dir.path().join("ids.json");
+    std::fs::write(&ids, r#"{"door": "D", "crate#1": "C1"}"#).unwrap();
+    let flags = dir.path().join("flags.json");
+    std::fs::write(
+        &flags,
+        r#"{"door": ["always_visible"], "wall": ["never_occluder"]}"#,
+    )
+    .unwrap();
+    let build = |extra: &[&str]| {
+        let mut args = vec!["build", model.to_str().unwrap(), "--max-depth", "2"];
+        let out_path = s(&v5d);
+        args.extend(["-o", &out_path]);
+        args.extend(extra);
+        crate::vis5d(&args)
+    };
+    let out = build(&["--ids", &s(&ids), "--flags", &s(&flags)]);
+    assert!(out.status.success(), "{}", crate::text(&out.stderr));
+    let want = [("D", n.union(a)), ("C1", none), ("crate#2", a), ("wall", n)]
+        .map(|(i, f)| (i.to_owned(), f));
+    assert_eq!(table(&Pvs::load(&v5d).unwrap()), want);
+    // A sidecar key is a default id, not the model's id.
+    std::fs::write(&ids, r#"{"door-17": "D"}"#).unwrap();
+    let out = build(&["--ids", &s(&ids), "--dry-run"]);
+    let err = crate::text(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("\"door-17\""),
+        "{err}"
+    );
+    // Ids stay unique: a sidecar id that is a model's id is refused.
+    std::fs::write(&ids, r#"{"wall": "door-17"}"#).unwrap();
+    let out = build(&["--ids", &s(&ids), "--dry-run"]);
+    let err = crate::text(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("two objects would have the id \"door-17\""),
+        "{err}"
+    );
+}
+
+/// Bad `extras.vis5d` values are load errors naming the file and the
+/// node.
+#[test]
+fn bad_extras_are_errors_naming_the_file_and_the_node() {
+    let long = "x".repeat(vis5d::codec::MAX_ID_BYTES + 1);
+    let cases: Vec<(usize, Value, &str)> = vec![
+        (2, json!(5), "must be an object"),
+        (2, json!(["door"]), "must be an object"),
+        (2, json!({"id": 3}), "id must be a string"),
+        (2, json!({"id": null}), "id must be a string"),
+        (
+            2,
+            json!({"flags": "never_occluder"}),
+            "flags must be a list",
+        ),
+        (2, json!({"flags": ["glass"]}), "unknown flag \"glass\""),
+        (2, json!({"flags": [1]}), "unknown flag 1"),
+        (
+            2,
+            json!({"flag": ["never_occluder"]}),
+            "has the key \"flag\"",
+        ),
+        (2, json!({"id": ""}), "is empty, longer than 1024 bytes"),
+        (
+            2,
+            json!({"id": "a\u{0}b"}),
+            "is empty, longer than 1024 bytes",
+        ),
+        (2, json!({"id": long}), "is empty, longer than 1024 bytes"),
+        // Two objects with one id: another node's, or another object's
+        // default id.
+        (
+            0,
+            json!({"id": "door-17"}),
+            "node 0 \"door\" and node 2 \"crate\" would both have the id \"door-17\"",
+        ),
+        (
+            1,
+            json!({"id": "wall"}),
+            "node 1 \"crate\" and node 3 \"wall\" would both have the id \"wall\"",
+        ),
+    ];
+    for (node, value, want) in cases {
+        let (mut doc, bin) = with_extras();
+        if node == 2 {
+            doc["nodes"][2]["extras"]["vis5d"] = value.clone();
+        } else {
+            // Node 2 takes door's id; or node 1 takes wall's name.
+            doc["nodes"][2]["extras"]["vis5d"] = json!({});
+            doc["nodes"][node]["extras"] = json!({"vis5d": value});
+            if node == 0 {
+                doc["nodes"][0]["extras"] = json!({"vis5d": {"id": "door-17"}});
+                doc["nodes"][2]["extras"] = json!({"vis5d": {"id": "door-17"}});
+            }
+        }
+        let (e, msg) = load_err(doc, &bin);
+        let at = if node == 2 {
+            "node 2 \"crate\""
+        } else {
+            "node "
+        };
+        assert!(msg.contains(want) && msg.contains(at), "{value}: {msg}");
+        assert!(
+            matches!(e, SceneError::Syntax { .. } | SceneError::Id { .. }),
+            "{e:?}"
+        );
+    }
 }
