@@ -492,7 +492,8 @@ pub fn file_with_params(
                 name: o.name.clone(),
                 id,
                 triangles: o.triangle_count() as u32,
-                bounds: Some(o.bounds),
+                // An empty object has no box (stored as "not known").
+                bounds: (!o.is_empty()).then_some(o.bounds),
                 flags: o.flags,
             })
             .collect(),
@@ -651,7 +652,9 @@ pub fn build(
         over_budget: AtomicBool::new(false),
         progress,
     };
-    let candidates = ObjectSet::full(scene.objects().len());
+    // Every object with a surface: an empty one (no triangles) is never
+    // sampled and never in a set.
+    let candidates = scene.surface_objects();
     let mut stats = BuildStats::default();
     let built = builder_node::build_node(
         &ctx,

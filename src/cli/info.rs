@@ -16,7 +16,9 @@ pub struct InfoArgs {
     /// Print the summary as JSON (with every object) instead of text.
     #[arg(long)]
     json: bool,
-    /// List every object (index, name, triangles, area, bounds).
+    /// List every object (index, name, triangles, area, bounds; empty
+    /// objects, groups of the model with no triangle of non-zero area, are
+    /// listed too: they keep the model's indices but are never visible).
     #[arg(long)]
     objects: bool,
 }
@@ -28,7 +30,8 @@ struct ObjectInfo<'a> {
     name: &'a str,
     triangles: usize,
     area: f64,
-    bounds: [World; 2],
+    /// None for an empty object (no triangles, no box).
+    bounds: Option<[World; 2]>,
 }
 
 /// The summary printed by `info`.
@@ -47,7 +50,8 @@ struct SceneInfo<'a> {
     surface_area: f64,
     load_seconds: f64,
     dropped_degenerate_triangles: usize,
-    dropped_empty_objects: &'a [String],
+    /// The indices of the empty objects.
+    empty_objects: &'a [usize],
     skipped_non_triangles: usize,
     duplicate_names: Vec<DuplicateName<'a>>,
     object_list: Vec<ObjectInfo<'a>>,
@@ -76,7 +80,7 @@ pub fn run(args: &InfoArgs) -> Result<()> {
         surface_area: scene.objects().iter().map(|o| o.area).sum(),
         load_seconds: seconds,
         dropped_degenerate_triangles: report.dropped_degenerate,
-        dropped_empty_objects: &report.dropped_empty_objects,
+        empty_objects: &report.empty_objects,
         skipped_non_triangles: report.skipped_non_triangles,
         duplicate_names: report
             .duplicate_names
@@ -95,7 +99,8 @@ pub fn run(args: &InfoArgs) -> Result<()> {
                 name: &o.name,
                 triangles: o.triangle_count(),
                 area: o.area,
-                bounds: [World(frame, o.bounds.min), World(frame, o.bounds.max)],
+                bounds: (!o.is_empty())
+                    .then_some([World(frame, o.bounds.min), World(frame, o.bounds.max)]),
             })
             .collect(),
     };
@@ -131,10 +136,30 @@ fn print_info(out: &mut impl Write, s: &SceneInfo, all_objects: bool) -> io::Res
     writeln!(out, "  loaded in        {:.3} s", s.load_seconds)?;
     writeln!(
         out,
-        "  dropped          {} zero-area triangles, {} groups without triangles",
+        "  dropped          {} zero-area triangles",
         s.dropped_degenerate_triangles,
-        s.dropped_empty_objects.len()
     )?;
+    if !s.empty_objects.is_empty() {
+        // A note, not an error: the groups keep their places (and the
+        // model's indices) but have no surface.
+        let shown: Vec<String> = s
+            .empty_objects
+            .iter()
+            .take(if all_objects { usize::MAX } else { 10 })
+            .map(|&i| format!("#{i} {:?}", s.object_list[i].name))
+            .collect();
+        writeln!(
+            out,
+            "  empty objects    {} without a triangle of non-zero area (listed, never visible): {}{}",
+            s.empty_objects.len(),
+            shown.join(", "),
+            if shown.len() < s.empty_objects.len() {
+                ", ... (--objects lists them all)"
+            } else {
+                ""
+            }
+        )?;
+    }
     writeln!(
         out,
         "  skipped          {} lines and points",

@@ -75,8 +75,8 @@ enum Command {
     /// Load a scene and print a summary of its objects and triangles.
     ///
     /// Checks the file as the builder will see it: polygons triangulated,
-    /// zero-area triangles dropped, groups without triangles dropped,
-    /// repeated object names reported. Bad input (syntax errors, indices out
+    /// zero-area triangles dropped, groups without triangles listed as
+    /// empty objects (never visible), repeated object names reported. Bad input (syntax errors, indices out
     /// of range, NaN or infinite coordinates, no triangles) is an error that
     /// names the file and, for OBJ, the line.
     Info(info::InfoArgs),

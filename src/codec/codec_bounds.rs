@@ -29,7 +29,7 @@ pub struct BoundsGrid {
 
 impl BoundsGrid {
     /// The grid over the union of `boxes` (the zero box when there are
-    /// none).
+    /// none, or only empty ones).
     pub fn over<'a>(boxes: impl IntoIterator<Item = &'a Aabb>) -> Self {
         let space = boxes.into_iter().fold(Aabb::EMPTY, |u, b| u.union(b));
         Self {
@@ -70,10 +70,13 @@ impl BoundsGrid {
         .clamp(lo, hi)
     }
 
-    /// The codes of `b` (a box inside the grid's), rounded outwards; of
-    /// [`UNKNOWN`] for `None`.
+    /// The codes of `b` (a box inside the grid's), rounded outwards;
+    /// [`UNKNOWN`] for `None` and for an empty box (an object of no
+    /// triangles has none).
     pub fn quantise(&self, b: Option<&Aabb>) -> [u16; 6] {
-        let Some(b) = b else { return UNKNOWN };
+        let Some(b) = b.filter(|b| !b.is_empty()) else {
+            return UNKNOWN;
+        };
         let mut q = [0u16; 6];
         for axis in 0..3 {
             let (lo, hi) = (self.space.min[axis], self.space.max[axis]);

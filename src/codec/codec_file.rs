@@ -82,7 +82,8 @@ pub struct FileObject {
     pub triangles: u32,
     /// Its bounding box in the tree's local coordinates, as stored:
     /// quantised outwards (it holds the object's box); `None` when the
-    /// file does not say (version 1).
+    /// file does not say (version 1) and for an object of no triangles
+    /// (an empty group of the model: no box).
     pub bounds: Option<Aabb>,
     /// Its flags, set at bake time (version 6; older files: none).
     pub flags: ObjectFlags,
@@ -219,9 +220,10 @@ pub enum MeshError {
 /// `.v5d` was built for the geometry at hand).
 ///
 /// Computed as the loaders do: triangles of zero area are left out
-/// ([`crate::geom::zero_area`]), then objects left without triangles;
-/// the frame of a model far from the origin is chosen from the rest
-/// ([`Frame::for_bounds`]). The positions must be the ones the loader
+/// ([`crate::geom::zero_area`]), and an object left without triangles
+/// (or given none) still counts, as an empty object (the loaders list
+/// empty groups in their places); the frame of a model far from the
+/// origin is chosen from the rest ([`Frame::for_bounds`]). The positions must be the ones the loader
 /// reads, bit for bit: a glTF node's transform is applied by the loader
 /// in f64 and rounded once, so an engine that composes transforms in f32
 /// may differ in the last bit of a moved vertex.
@@ -272,7 +274,6 @@ pub fn fingerprint_meshes(objects: &[(&[[f32; 3]], &[u32])], up: Up) -> Result<u
                 .map(|t| t.map(|v| frame.dir_to_local(v)))
                 .collect()
         })
-        .filter(|t: &Vec<[Vec3; 3]>| !t.is_empty())
         .collect();
     Ok(geometry_fingerprint(
         local.iter().map(Vec::as_slice),
@@ -867,6 +868,52 @@ mod tests {
         assert_eq!(back.objects[0].name, "é".repeat(32_767));
         assert_eq!(back.objects[0].id, back.objects[0].name);
         assert_eq!(back.objects[0].flags, ObjectFlags::NEVER_OCCLUDER);
+    }
+
+    #[test]
+    fn an_empty_object_round_trips_without_a_box() {
+        use crate::geom::Aabb;
+        let mut set = crate::bitset::ObjectSet::new(3);
+        set.insert(0);
+        set.insert(2);
+        let tree = VisTree::from_parts(
+            Cell::all_directions(Aabb::new(Vec3::ZERO, Vec3::ONE)),
+            4,
+            3,
+            vec![crate::tree::Node { split: None, set }],
+        );
+        let object = |name: &str, triangles, bounds| FileObject {
+            name: name.into(),
+            id: name.into(),
+            triangles,
+            bounds,
+            flags: ObjectFlags::NONE,
+        };
+        let b = Aabb::new(Vec3::ZERO, Vec3::splat(0.5));
+        for empty in [None, Some(Aabb::EMPTY)] {
+            let file = V5dFile {
+                coding: Coding::Leaves,
+                fingerprint: 1,
+                frame: Frame::IDENTITY,
+                params: String::new(),
+                objects: vec![
+                    object("a", 2, Some(b)),
+                    object("none", 0, empty),
+                    object("c", 1, Some(Aabb::new(Vec3::splat(0.5), Vec3::ONE))),
+                ],
+                tree: tree.clone(),
+                slices: None,
+            };
+            let bytes = write_file(&file);
+            let back = read_file(&bytes, ReadLimits::default()).unwrap();
+            assert_eq!(back.objects[1], object("none", 0, None));
+            // The others' boxes, quantised outwards, on a grid of theirs.
+            let got = back.objects[0].bounds.unwrap();
+            assert!(got.min.cmple(b.min).all() && got.max.cmpge(b.max).all());
+            assert_eq!(back.tree, file.tree);
+            // Written again: the same bytes.
+            assert_eq!(write_file(&back), bytes);
+        }
     }
 
     #[test]

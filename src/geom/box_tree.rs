@@ -6,7 +6,9 @@
 //! Built top-down: a node's objects are split at the median of their box
 //! centres along the axis where the centres spread most (ties by object
 //! index), down to one object per leaf. Deterministic: the same boxes give
-//! the same tree.
+//! the same tree. Empty boxes ([`Aabb::is_empty`]: objects without
+//! triangles) are left out: they overlap nothing, are never marked, and
+//! their centres (infinite sums) would not sort.
 
 use crate::bitset::ObjectSet;
 use crate::geom::Aabb;
@@ -40,16 +42,20 @@ impl BoxNode {
     }
 }
 
-/// A binary hierarchy of object boxes, root first (empty for no objects).
+/// A binary hierarchy of object boxes, root first (empty for no objects,
+/// or none with a non-empty box).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct BoxTree {
     nodes: Vec<BoxNode>,
 }
 
 impl BoxTree {
-    /// The hierarchy over `boxes` (object `i`'s box is `boxes[i]`).
+    /// The hierarchy over `boxes` (object `i`'s box is `boxes[i]`), the
+    /// empty ones left out.
     pub fn new(boxes: &[Aabb]) -> Self {
-        let mut ids: Vec<u32> = (0..boxes.len() as u32).collect();
+        let mut ids: Vec<u32> = (0..boxes.len() as u32)
+            .filter(|&i| !boxes[i as usize].is_empty())
+            .collect();
         let mut nodes = Vec::with_capacity(2 * ids.len());
         if !ids.is_empty() {
             build(boxes, &mut nodes, &mut ids);
@@ -114,8 +120,9 @@ impl BoxTree {
     }
 
     /// Checks the invariants for `boxes` (those it was built from): every
-    /// object in exactly one leaf holding its box, every inner box the
-    /// union of its children's, every node reached once from the root.
+    /// object of a non-empty box in exactly one leaf holding its box (and
+    /// no other object), every inner box the union of its children's,
+    /// every node reached once from the root.
     pub fn validate(&self, boxes: &[Aabb]) -> Result<(), InvariantError> {
         self.check(boxes)
             .map_err(|what| InvariantError::new("box hierarchy", what))
@@ -139,7 +146,10 @@ impl BoxTree {
             match self.nodes[k as usize] {
                 BoxNode::Object { bounds, object } => {
                     let o = object as usize;
-                    if o >= boxes.len() || std::mem::replace(&mut seen[o], true) {
+                    if o >= boxes.len()
+                        || boxes[o].is_empty()
+                        || std::mem::replace(&mut seen[o], true)
+                    {
                         return Err(format!("object {object} is missing or repeated"));
                     }
                     if bounds != boxes[o] {
@@ -156,7 +166,8 @@ impl BoxTree {
                 }
             }
         }
-        if !seen.iter().all(|&s| s) || !reached.iter().all(|&r| r) {
+        let listed = |(o, &s): (usize, &bool)| s || boxes[o].is_empty();
+        if !seen.iter().enumerate().all(listed) || !reached.iter().all(|&r| r) {
             return Err("an object or a node is not reached from the root".into());
         }
         Ok(())
@@ -219,6 +230,27 @@ mod tests {
             t.validate(&b).unwrap();
             assert_eq!(t.nodes().len(), (2 * n).saturating_sub(1));
         }
+    }
+
+    #[test]
+    fn empty_boxes_are_left_out() {
+        let mut b = boxes(9);
+        for i in [0, 4, 8] {
+            b[i] = Aabb::EMPTY;
+        }
+        let t = BoxTree::new(&b);
+        t.validate(&b).unwrap();
+        assert_eq!(t.nodes().len(), 2 * 6 - 1);
+        let mut all = ObjectSet::new(b.len());
+        t.mark_where(&|_| true, &mut all);
+        assert_eq!(all.iter().collect::<Vec<_>>(), [1, 2, 3, 5, 6, 7]);
+        let mut near = Vec::new();
+        t.overlapping(&Aabb::new(Vec3::splat(-1e9), Vec3::splat(1e9)), &mut near);
+        assert_eq!(near.len(), 6);
+        let none = [Aabb::EMPTY; 3];
+        let t = BoxTree::new(&none);
+        t.validate(&none).unwrap();
+        assert!(t.nodes().is_empty());
     }
 
     /// Marking equals a linear scan of the objects when the test is

@@ -451,7 +451,7 @@ impl<'a> Oracle<'a> {
     }
 
     /// [`Oracle::prove`], with the objects flagged always visible kept
-    /// whatever it proved.
+    /// whatever it proved, and the empty objects (no surface) hidden.
     fn run(
         &self,
         cell: &Aabb,
@@ -462,6 +462,9 @@ impl<'a> Oracle<'a> {
         let mut report = self.prove(cell, parent_hidden, rasterise, sliced);
         for o in self.scene.always_visible() {
             report.visible.insert(o);
+        }
+        for o in self.scene.empty_objects() {
+            report.visible.remove(o);
         }
         report
     }
@@ -501,6 +504,11 @@ impl<'a> Oracle<'a> {
                 hidden.insert(i);
                 hidden_by_parent += 1;
             }
+        }
+        // Empty objects have no surface: hidden from the start, so that no
+        // test meets their (empty) boxes.
+        for i in self.scene.empty_objects() {
+            hidden.insert(i);
         }
         // The part of the cell inside closed convex solids sees only what
         // lies within them: project from the rest, keep what meets them.

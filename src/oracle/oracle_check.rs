@@ -332,6 +332,14 @@ fn check_leaf(
         if kept && violations.iter().any(|v| v.object as usize == o) {
             continue;
         }
+        if scene.objects()[o].is_empty() {
+            // No surface to aim at, and no ray ever sees it: kept, it is
+            // drawn for nothing; hidden, it is right.
+            if kept {
+                sampled_only += 1;
+            }
+            continue;
+        }
         let (rays, hits, witness) = burst(scene, tracer, cell, o, params.burst, &mut rng);
         if kept {
             match witness {

@@ -151,7 +151,8 @@ pub struct Extracted {
 pub fn extract(scene: &Scene) -> Extracted {
     let mut out = Extracted::default();
     for object in 0..scene.objects().len() {
-        if !scene.objects()[object].flags.occludes() {
+        let o = &scene.objects()[object];
+        if !o.flags.occludes() || o.is_empty() {
             continue;
         }
         extract_object(scene.object_triangles(object), object as u32, &mut out);

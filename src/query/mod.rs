@@ -17,7 +17,8 @@
 //!
 //! Conservative by construction where the tree is: positions outside the
 //! view box the tree was built for get every object (nothing was sampled
-//! there, so nothing may be culled).
+//! there, so nothing may be culled; but an object of no triangles, an
+//! empty group of the model, which is never visible).
 //!
 //! Positions are in the tree's frame ([`Pvs::frame`],
 //! [`crate::geom::Frame`]): for a scene modelled around the origin (within
@@ -101,7 +102,8 @@ pub struct FingerprintMismatch {
 pub enum Answer {
     /// From the tree: the union of the leaf sets the query meets.
     Tree,
-    /// Every object (culled to the frustum, for a view): some position of
+    /// Every object (but those of no triangles, never visible; culled to
+    /// the frustum, for a view): some position of
     /// the query lies outside the view box the tree was built for
     /// ([`Pvs::view_box`]), where nothing was sampled and nothing may be
     /// culled, or the query held a NaN. The conservative answer.
@@ -404,6 +406,10 @@ impl Frustum {
     /// Whether some point of the box `b` may be in the frustum: false only
     /// when all of it is outside one plane by more than the slack.
     pub fn may_see(&self, b: &Aabb) -> bool {
+        if b.is_empty() {
+            // The box of no triangles: nothing to see.
+            return false;
+        }
         self.planes[..self.count]
             .iter()
             .zip(&self.eyes)
@@ -701,6 +707,15 @@ impl Pvs {
         } else {
             Vec::new()
         };
+        // Every object that has triangles: one without (an empty group of
+        // the model) is never visible.
+        let mut all = ObjectSet::full(n_objects);
+        for (i, o) in file.objects.iter().enumerate() {
+            if o.triangles == 0 {
+                all.remove(i);
+            }
+        }
+        let all = all.words().to_vec();
         Ok(Pvs {
             coding: file.coding,
             fingerprint: file.fingerprint,
@@ -714,7 +729,7 @@ impl Pvs {
             records,
             slices,
             leaf_rank,
-            all: ObjectSet::full(n_objects).words().to_vec(),
+            all,
             by_id,
         })
     }
@@ -851,8 +866,8 @@ impl Pvs {
 
     /// The set of the leaf holding the ray point `p` = (x, y, z, theta,
     /// phi), local coordinates, as words of bits (bit i = object i), and
-    /// [`Answer::Tree`]; every object and [`Answer::Everything`] for a
-    /// point outside the view box ([`Pvs::view_box`]), a direction's
+    /// [`Answer::Tree`]; every object (with triangles) and
+    /// [`Answer::Everything`] for a point outside the view box ([`Pvs::view_box`]), a direction's
     /// angles outside their ranges or a NaN.
     pub fn leaf_set(&self, p: [f32; DIMS]) -> (&[u64], Answer) {
         if self.holds(p) {

@@ -48,6 +48,7 @@ pub fn frustum_set(scene: &Scene, view: &View, out: &mut ObjectSet) {
     out.clear();
     let frustum = Frustum::new(view, &Aabb::new(view.position, view.position));
     for (i, o) in scene.objects().iter().enumerate() {
+        // An empty object's box is empty: `may_see` says no.
         if frustum.may_see(&o.bounds) {
             out.insert(i);
         }

@@ -6,7 +6,9 @@
 //! file has no scene), in node index order, with the node's world transform
 //! applied. Named by the node name, else the mesh name, else `node<i>`.
 //! Triangle lists, strips and fans are read; points and lines are skipped
-//! and counted.
+//! and counted. A node whose mesh gives no triangle of non-zero area
+//! (points or lines only) is an empty object, listed in its place (issue
+//! 15: "empty groups are listed, not dropped").
 //!
 //! Ids and flags (issue 15): an object's node may say what vis5d should
 //! call it and what it is to visibility, in its `extras`:

@@ -5,7 +5,9 @@
 //! object named after the file. Objects come in file order and keep the
 //! names written in the file (a bare `o`/`g` gives tobj's
 //! `unnamed_object`). Faces before the first group statement form an object
-//! named after the file. Polygons are fan-triangulated by tobj; texture
+//! named after the file. A group without faces (or with faces of zero area
+//! only) is an empty object, listed in its place (issue 15: "empty groups
+//! are listed, not dropped"). Polygons are fan-triangulated by tobj; texture
 //! coordinates, normals, materials, smoothing groups, lines (`l`) and points
 //! (`p`) are ignored.
 //!
@@ -16,7 +18,11 @@
 //!   do not split it), and every line vis5d ignores,
 //! - starts the file with a synthetic `o`/`g` line named after the file,
 //! - checks every face's vertex indices and every vertex's coordinates as it
-//!   passes, so errors carry the exact line number.
+//!   passes, so errors carry the exact line number,
+//! - notes every group and how many faces it hands tobj, and hands it each
+//!   group line as `o NAME`: tobj makes no model of a group without faces
+//!   (but the last), so the empty groups are put back in their places from
+//!   this list.
 
 use std::io::{self, BufRead};
 use std::path::Path;
@@ -37,6 +43,9 @@ pub(super) fn load_obj(
         .map(|s| s.to_string_lossy().into_owned())
         .filter(|s| !s.is_empty())
         .unwrap_or_else(|| "scene".to_owned());
+    // As tobj names it (a stem of white space alone, or with some around
+    // it, is read back trimmed).
+    let stem = tobj_name(&stem);
     let keyword = if has_o { "o" } else { "g" };
     let mut reader = ObjLines {
         rest: bytes,
@@ -49,6 +58,8 @@ pub(super) fn load_obj(
         vertices: 0,
         skipped: 0,
         group: stem.clone(),
+        groups: Vec::new(),
+        rewrite: None,
         error: None,
         progress,
         reported: 0,
@@ -79,7 +90,32 @@ pub(super) fn load_obj(
     for _ in 0..reader.skipped {
         builder.skip_non_triangle();
     }
-    for model in &models {
+    // tobj's models are the groups with faces, in order, and the last
+    // group whatever it holds; the empty groups come from the list.
+    let internal = |what: &str| SceneError::Syntax {
+        path: path.to_owned(),
+        line: 0,
+        message: format!("internal error: tobj's models do not match the groups ({what})"),
+    };
+    let mut made = models.iter();
+    let last = reader.groups.len().saturating_sub(1);
+    for (k, group) in reader.groups.iter().enumerate() {
+        let model = if group.faces > 0 || k == last {
+            Some(made.next().ok_or_else(|| internal("too few models"))?)
+        } else {
+            None
+        };
+        let model = model.filter(|_| group.faces > 0);
+        if model.is_none() {
+            if !group.synthetic {
+                builder.begin_object(group.name.clone());
+            }
+            continue;
+        }
+        let model = model.expect("checked above");
+        if model.name != group.name {
+            return Err(internal(&format!("{:?} for {:?}", model.name, group.name)));
+        }
         builder.begin_object(model.name.clone());
         let p = &model.mesh.positions;
         // Positions are parsed as f64 (tobj's `use_f64`): a model in
@@ -101,6 +137,9 @@ pub(super) fn load_obj(
                 })?;
         }
     }
+    if made.next().is_some() {
+        return Err(internal("too many models"));
+    }
     // tobj's copy is no longer needed: free it before the builder makes
     // the scene's own.
     drop(models);
@@ -114,6 +153,15 @@ fn has_statement(bytes: &[u8], keyword: u8) -> bool {
         let line = line.trim_ascii_start();
         line.first() == Some(&keyword) && line.get(1).is_none_or(|b| b.is_ascii_whitespace())
     })
+}
+
+/// The name tobj gives a group whose `o` or `g` line ends in `rest`: `rest`
+/// trimmed, `unnamed_object` when nothing is left.
+fn tobj_name(rest: &str) -> String {
+    match rest.trim() {
+        "" => "unnamed_object".to_owned(),
+        name => name.to_owned(),
+    }
 }
 
 /// An error found by [`ObjLines`] on the way, with its line.
@@ -154,6 +202,18 @@ impl LineError {
     }
 }
 
+/// A group statement met by [`ObjLines`].
+#[derive(Debug)]
+struct Group {
+    /// Its name, as tobj names it.
+    name: String,
+    /// The synthetic group named after the file (an object only when
+    /// faces come before the first group statement).
+    synthetic: bool,
+    /// The faces handed to tobj in it.
+    faces: usize,
+}
+
 /// The filtering, checking reader described in the module docs. It hands
 /// tobj one line at a time.
 struct ObjLines<'a, 'p> {
@@ -171,6 +231,10 @@ struct ObjLines<'a, 'p> {
     skipped: usize,
     /// The current object's name, for messages.
     group: String,
+    /// Every group met, the synthetic first one included, in order.
+    groups: Vec<Group>,
+    /// The line to hand tobj instead of the one read.
+    rewrite: Option<String>,
     error: Option<LineError>,
     progress: &'p mut dyn FnMut(u64, u64),
     reported: u64,
@@ -181,6 +245,11 @@ impl ObjLines<'_, '_> {
     /// the end of the text or after an error.
     fn next_line(&mut self) -> bool {
         if let Some(s) = self.synthetic.take() {
+            self.groups.push(Group {
+                name: self.group.clone(),
+                synthetic: true,
+                faces: 0,
+            });
             self.line.clear();
             self.line.extend_from_slice(s.as_bytes());
             return true;
@@ -202,7 +271,10 @@ impl ObjLines<'_, '_> {
             match self.check(raw) {
                 Ok(true) => {
                     self.line.clear();
-                    self.line.extend_from_slice(raw);
+                    match self.rewrite.take() {
+                        Some(line) => self.line.extend_from_slice(line.as_bytes()),
+                        None => self.line.extend_from_slice(raw),
+                    }
                     return true;
                 }
                 Ok(false) => {}
@@ -257,17 +329,20 @@ impl ObjLines<'_, '_> {
                     self.skipped += 1;
                     return Ok(false);
                 }
+                if let Some(g) = self.groups.last_mut() {
+                    g.faces += 1;
+                }
                 Ok(true)
             }
             Some("o") => {
-                self.group = text.trim()[1..].trim().to_owned();
+                self.start_group(text);
                 Ok(true)
             }
             Some("g") => {
                 if self.drop_g {
                     return Ok(false);
                 }
-                self.group = text.trim()[1..].trim().to_owned();
+                self.start_group(text);
                 Ok(true)
             }
             Some("l") | Some("p") => {
@@ -278,6 +353,21 @@ impl ObjLines<'_, '_> {
             // ignored; tobj does not need to see it.
             _ => Ok(false),
         }
+    }
+
+    /// Notes the group that the `o` or `g` line `text` starts, named as
+    /// tobj names it (the rest of the line, trimmed; `unnamed_object` when
+    /// there is none), and hands tobj the line as `o NAME` (tobj would take
+    /// a line's leading white space into the name).
+    fn start_group(&mut self, text: &str) {
+        let name = tobj_name(&text.trim()[1..]);
+        self.group.clone_from(&name);
+        self.rewrite = Some(format!("o {name}\n"));
+        self.groups.push(Group {
+            name,
+            synthetic: false,
+            faces: 0,
+        });
     }
 
     /// Checks one face vertex `v`, `v/vt`, `v//vn` or `v/vt/vn`.
@@ -372,6 +462,12 @@ mod tests {
     fn no_groups_means_one_object_named_after_the_file() {
         let s = load(&format!("{VERTS}f 1 2 3\nf -4 -2 -1\n")).unwrap();
         assert_eq!(names(&s), [("model", 2)]);
+        // A stem with white space around it is named as tobj reads it.
+        for (file, name) in [(" my model .obj", "my model"), (" .obj", "unnamed_object")] {
+            let text = format!("{VERTS}f 1 2 3\no x\n");
+            let s = load_obj(Path::new(file), text.as_bytes(), &mut |_, _| {}).unwrap();
+            assert_eq!(names(&s), [(name, 1), ("x", 0)], "{file:?}");
+        }
     }
 
     #[test]
@@ -392,12 +488,28 @@ mod tests {
     }
 
     #[test]
-    fn degenerate_triangles_and_empty_groups_are_dropped() {
-        let text = format!("{VERTS}o empty\no flat\nf 1 2 2\no ok\nf 1 2 3\n");
+    fn degenerate_triangles_are_dropped_and_empty_groups_listed() {
+        let text = format!("{VERTS}o empty\no flat\nf 1 2 2\no ok\nf 1 2 3\no\n  o  last one \n");
         let s = load(&text).unwrap();
-        assert_eq!(names(&s), [("ok", 1)]);
+        s.validate().unwrap();
+        assert_eq!(
+            names(&s),
+            [
+                ("empty", 0),
+                ("flat", 0),
+                ("ok", 1),
+                ("unnamed_object", 0),
+                ("last one", 0)
+            ]
+        );
         assert_eq!(s.report().dropped_degenerate, 1);
-        assert_eq!(s.report().dropped_empty_objects, ["flat"]);
+        assert_eq!(s.report().empty_objects, [0, 1, 3, 4]);
+        // Without `o`, the `g` groups; faces before them make the file's
+        // object, which is not listed when there are none.
+        let s = load(&format!("{VERTS}g a\ng b\nf 1 2 3\ng c\n")).unwrap();
+        assert_eq!(names(&s), [("a", 0), ("b", 1), ("c", 0)]);
+        let s = load(&format!("{VERTS}f 1 2 3\ng a\n")).unwrap();
+        assert_eq!(names(&s), [("model", 1), ("a", 0)]);
     }
 
     #[test]

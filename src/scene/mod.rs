@@ -6,6 +6,16 @@
 //! objects. Objects are identified by their index, in file order; their
 //! names are for people and may repeat (repeats are kept and reported).
 //!
+//! Every group of the model is an object, so that indices follow the
+//! model's groups (issue 15: "empty groups are listed, not dropped"): a
+//! group with no triangle of non-zero area (an OBJ `o` without faces, a
+//! glTF node whose mesh is points or lines, faces all of zero area) is an
+//! *empty* object ([`Object::is_empty`]), with its name, id and flags, no
+//! triangles, the empty box ([`Aabb::EMPTY`]) and no area. It has no
+//! surface, so it is never visible: never in a set of a tree, hidden by
+//! both oracles, occluding nothing ([`Scene::surface_objects`] are the
+//! others; [`LoadReport::empty_objects`] lists them).
+//!
 //! Each object owns a contiguous range of the scene's triangle array, its
 //! bounding box, and a cumulative area table for uniform surface sampling
 //! (papers/003 sec. 5 casts rays "to random points on the object"): a
@@ -14,9 +24,10 @@
 //!
 //! Invariants kept by [`SceneBuilder::finish`] and checked by
 //! [`Scene::validate`]: every coordinate is finite, every triangle has
-//! non-zero area, every object has at least one triangle, object ranges tile
-//! the triangle array in order, the scene has at least one triangle, and
-//! the objects' ids ([`Scene::ids`]) are valid and unique.
+//! non-zero area, object ranges tile the triangle array in order (an
+//! empty object's range is empty, its box [`Aabb::EMPTY`]), the scene has
+//! at least one triangle, and the objects' ids ([`Scene::ids`]) are valid
+//! and unique.
 
 mod load_gltf;
 mod load_obj;
@@ -52,11 +63,14 @@ pub struct Object {
     /// ([`Scene::ids`]); `None` for most objects, and for every object of
     /// an OBJ file.
     pub id: Option<String>,
-    /// The object's triangles, as a range of [`Scene::triangles`].
+    /// The object's triangles, as a range of [`Scene::triangles`] (empty
+    /// for an empty object).
     pub triangles: Range<u32>,
-    /// The bounding box of the object's triangles.
+    /// The bounding box of the object's triangles ([`Aabb::EMPTY`] for an
+    /// empty object: check [`Object::is_empty`] before using its centre).
     pub bounds: Aabb,
-    /// The total surface area (one side), in squared scene units.
+    /// The total surface area (one side), in squared scene units (0 for an
+    /// empty object).
     pub area: f64,
     /// What the object is to visibility beyond its triangles (always
     /// visible, never an occluder): the model's (a glTF node's
@@ -69,6 +83,12 @@ impl Object {
     /// The number of triangles.
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
+    }
+
+    /// Whether the object has no triangle (a group of the model with no
+    /// triangle of non-zero area): it has no surface and is never visible.
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
     }
 }
 
@@ -115,9 +135,11 @@ pub struct LoadReport {
     /// Triangles dropped because their area is zero (collinear or repeated
     /// corners); see [`is_degenerate`].
     pub dropped_degenerate: usize,
-    /// Groups (OBJ `o`/`g`, glTF nodes) skipped because no triangle of
-    /// theirs survived: an object must have a surface to be sampled.
-    pub dropped_empty_objects: Vec<String>,
+    /// The empty objects ([`Object::is_empty`]), by index, in order:
+    /// groups (OBJ `o`/`g`, glTF nodes) with no triangle of non-zero area.
+    /// They are listed with the others, so that indices follow the model,
+    /// but have no surface and are never visible.
+    pub empty_objects: Vec<usize>,
     /// Primitives that are not surfaces and were skipped: OBJ `l`/`p`
     /// lines, glTF points and lines.
     pub skipped_non_triangles: usize,
@@ -449,13 +471,34 @@ impl Scene {
         self.objects.iter().all(|o| o.flags.occludes())
     }
 
-    /// The objects flagged [`ObjectFlags::ALWAYS_VISIBLE`], in order.
+    /// The objects flagged [`ObjectFlags::ALWAYS_VISIBLE`], in order, but
+    /// the empty ones: with nothing to draw they are never visible, flag or
+    /// not.
     pub fn always_visible(&self) -> impl Iterator<Item = usize> + '_ {
         self.objects
             .iter()
             .enumerate()
-            .filter(|(_, o)| o.flags.always_visible())
+            .filter(|(_, o)| o.flags.always_visible() && !o.is_empty())
             .map(|(i, _)| i)
+    }
+
+    /// The empty objects ([`Object::is_empty`]), in order.
+    pub fn empty_objects(&self) -> impl Iterator<Item = usize> + '_ {
+        self.objects
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| o.is_empty())
+            .map(|(i, _)| i)
+    }
+
+    /// The objects that have a surface (every one but the empty ones): all
+    /// that can ever be visible, the candidates of a tree's root.
+    pub fn surface_objects(&self) -> crate::bitset::ObjectSet {
+        let mut set = crate::bitset::ObjectSet::full(self.objects.len());
+        for o in self.empty_objects() {
+            set.remove(o);
+        }
+        set
     }
 
     /// The format the scene was read from.
@@ -467,6 +510,8 @@ impl Scene {
     /// ([`crate::codec::geometry_fingerprint`] of its local triangles and
     /// its frame): stored in `.v5d` files so that a file built for another
     /// version of the scene, or the scene somewhere else, is detected.
+    /// Empty objects count (as objects of no triangles): adding or
+    /// removing one shifts the indices the file's sets stand for.
     pub fn fingerprint(&self) -> u64 {
         crate::codec::geometry_fingerprint(
             (0..self.objects.len()).map(|o| self.object_triangles(o)),
@@ -481,8 +526,12 @@ impl Scene {
 
     /// A point uniform on the surface of object `object`: a triangle chosen
     /// with probability proportional to its area, then a uniform point in it.
+    ///
+    /// # Panics
+    /// When the object is empty ([`Object::is_empty`]): it has no surface.
     pub fn sample_surface<R: Rng + ?Sized>(&self, object: usize, rng: &mut R) -> Vec3 {
         let o = &self.objects[object];
+        assert!(!o.is_empty(), "object {object} has no surface to sample");
         let (start, end) = (o.triangles.start as usize, o.triangles.end as usize);
         let cdf = &self.area_cdf[start..end];
         let u = rng.random::<f64>() * o.area;
@@ -510,7 +559,7 @@ impl Scene {
         let mut next = 0u32;
         let mut bounds = Aabb::EMPTY;
         for (i, o) in self.objects.iter().enumerate() {
-            if o.triangles.start != next || o.triangles.end <= o.triangles.start {
+            if o.triangles.start != next || o.triangles.end < o.triangles.start {
                 return Err(format!(
                     "object {i} ({:?}) has range {:?}",
                     o.name, o.triangles

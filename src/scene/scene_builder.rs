@@ -1,6 +1,7 @@
 //! Assembling a [`Scene`] from triangles streamed object by object: the one
 //! place where the load-time invariants (finite coordinates, no degenerate
-//! triangles, no empty objects) are established, whatever the file format.
+//! triangles, every object begun kept, empty or not, unique ids) are
+//! established, whatever the file format.
 
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -63,8 +64,9 @@ impl SceneBuilder {
     }
 
     /// Starts a new object; the triangles pushed from now on belong to it.
-    /// An object that ends with no triangle of non-zero area is dropped
-    /// (and reported).
+    /// An object that ends with no triangle of non-zero area is kept, empty
+    /// ([`super::Object::is_empty`]), and reported
+    /// ([`LoadReport::empty_objects`]).
     pub fn begin_object(&mut self, name: impl Into<String>) {
         self.begin_object_with(name, None, ObjectFlags::NONE);
     }
@@ -214,8 +216,7 @@ impl SceneBuilder {
             }
             let end = triangles.len() as u64;
             if end == start {
-                report.dropped_empty_objects.push(name);
-                continue;
+                report.empty_objects.push(objects.len());
             }
             if end >= u64::from(u32::MAX) {
                 return Err(SceneError::TooLarge {
@@ -306,7 +307,7 @@ mod tests {
     use glam::Vec3;
 
     #[test]
-    fn drops_degenerate_and_empty_and_reports_duplicates() {
+    fn drops_degenerate_keeps_empty_objects_and_reports_duplicates() {
         let mut b = SceneBuilder::new(SceneFormat::Procedural);
         b.begin_object("a");
         b.push_triangle([Vec3::ZERO, Vec3::X, Vec3::Y]).unwrap();
@@ -318,11 +319,25 @@ mod tests {
             .push_triangle([Vec3::ZERO, Vec3::X, Vec3::new(f32::NAN, 0.0, 0.0)])
             .unwrap_err();
         assert!(e.0.is_nan());
+        b.begin_object_with("none", None, ObjectFlags::ALWAYS_VISIBLE);
         let s = b.finish(Path::new("t")).unwrap();
         s.validate().unwrap();
-        assert_eq!(s.objects().len(), 2);
+        let got: Vec<(&str, usize)> = s
+            .objects()
+            .iter()
+            .map(|o| (o.name.as_str(), o.triangle_count()))
+            .collect();
+        assert_eq!(got, [("a", 1), ("empty", 0), ("a", 1), ("none", 0)]);
         assert_eq!(s.report().dropped_degenerate, 1);
-        assert_eq!(s.report().dropped_empty_objects, ["empty"]);
+        assert_eq!(s.report().empty_objects, [1, 3]);
+        assert_eq!(s.empty_objects().collect::<Vec<_>>(), [1, 3]);
+        assert_eq!(s.surface_objects().iter().collect::<Vec<_>>(), [0, 2]);
+        // Nothing to draw: never always visible.
+        assert_eq!(s.always_visible().count(), 0);
+        let empty = &s.objects()[1];
+        assert!(empty.is_empty() && empty.bounds == Aabb::EMPTY && empty.area == 0.0);
+        assert_eq!(empty.triangles, 1..1);
+        assert_eq!(s.object_of_triangle(1), 2);
         assert_eq!(s.report().duplicate_names, [("a".to_owned(), 2)]);
     }
 
@@ -366,7 +381,7 @@ mod tests {
             "{:?}",
             s.frame()
         );
-        assert_eq!(s.report().dropped_empty_objects, ["junk"]);
+        assert_eq!(s.report().empty_objects, [1]);
         // Huge corners are not mistaken for a zero area: the size is refused.
         let mut b = SceneBuilder::new(SceneFormat::Procedural);
         b.push_triangle_f64([DVec3::ZERO, DVec3::X * 1e160, DVec3::Y * 1e160])

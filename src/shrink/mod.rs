@@ -404,7 +404,8 @@ impl<'a> ShrinkOracle<'a> {
         let objects = self.scene.objects().len();
         let (cmin, cmax) = (cell.min.as_dvec3(), cell.max.as_dvec3());
         let mut report = ShrinkReport {
-            visible: ObjectSet::full(objects),
+            // Every object with a surface: an empty one is never visible.
+            visible: self.scene.surface_objects(),
             touching: objects,
             cluster_hidden: 0,
             erosion: 0.0,
@@ -453,15 +454,15 @@ impl<'a> ShrinkOracle<'a> {
         let mut visible = ObjectSet::new(objects);
         let mut touching = 0;
         for (i, o) in self.scene.objects().iter().enumerate() {
+            if o.is_empty() {
+                // No triangles: nothing to see, whatever its flags.
+                continue;
+            }
             if o.flags.always_visible() {
                 visible.insert(i);
                 continue;
             }
             let (lo, hi) = (o.bounds.min.as_dvec3(), o.bounds.max.as_dvec3());
-            if !(lo.cmple(hi).all()) {
-                // No triangles: nothing to see.
-                continue;
-            }
             if (0..3).all(|k| lo[k] <= gmax[k] && hi[k] >= gmin[k]) {
                 touching += 1;
                 visible.insert(i);

@@ -43,7 +43,7 @@ fn info_json_matches_the_library() {
 }
 
 #[test]
-fn info_text_reports_drops_and_duplicates() {
+fn info_text_reports_drops_empty_objects_and_duplicates() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("dups.obj");
     std::fs::write(
@@ -54,12 +54,18 @@ fn info_text_reports_drops_and_duplicates() {
     let out = vis5d(&["info", p.to_str().unwrap()]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     let t = text(&out.stdout);
-    assert!(t.contains("objects          2"), "{t}");
+    assert!(t.contains("objects          3"), "{t}");
+    assert!(t.contains("dropped          1 zero-area triangles"), "{t}");
     assert!(
-        t.contains("1 zero-area triangles, 1 groups without triangles"),
+        t.contains("empty objects    1 without a triangle of non-zero area (listed, never visible): #2 \"b\""),
         "{t}"
     );
     assert!(t.contains("\"a\" x2"), "{t}");
+    let out = vis5d(&["info", p.to_str().unwrap(), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["empty_objects"], serde_json::json!([2]));
+    assert_eq!(v["object_list"][2]["triangles"], 0);
+    assert_eq!(v["object_list"][2]["bounds"], serde_json::Value::Null);
 }
 
 #[test]

@@ -271,9 +271,9 @@ fn strips_fans_points_and_unindexed() {
         .iter()
         .map(|o| (o.name.as_str(), o.triangle_count()))
         .collect();
-    assert_eq!(got, [("strip", 2), ("fan", 2), ("list", 1)]);
+    assert_eq!(got, [("strip", 2), ("fan", 2), ("points", 0), ("list", 1)]);
     assert_eq!(s.report().skipped_non_triangles, 1);
-    assert_eq!(s.report().dropped_empty_objects, ["points"]);
+    assert_eq!(s.report().empty_objects, [2]);
     // Both quads cover the unit square.
     assert!((s.objects()[0].area - 1.0).abs() < 1e-9 && (s.objects()[1].area - 1.0).abs() < 1e-9);
 }
@@ -524,7 +524,8 @@ fn a_georeferenced_node_translation_keeps_the_mesh_precise() {
 /// The same triangles as OBJ and as GLB give one fingerprint, and an
 /// engine gets it from its own vertex and index buffers
 /// (`codec::fingerprint_meshes`): near the origin and far from it, +z and
-/// +y up, with a triangle of zero area and an object of only that.
+/// +y up, with a triangle of zero area, an object of only that and an
+/// object of no triangles (both empty objects, listed and counted).
 #[test]
 fn one_fingerprint_whatever_the_format_and_from_engine_buffers() {
     use vis5d::codec::{MeshError, fingerprint_meshes};
@@ -573,6 +574,16 @@ fn one_fingerprint_whatever_the_format_and_from_engine_buffers() {
                     .collect(),
                 vec![0, 1, 2],
             ),
+            // No faces (OBJ), points only (glTF), no indices (engine).
+            ("nothing", vec![at([8.0, 8.0, 8.0])], vec![]),
+            (
+                "last",
+                vec![[0.0, 3.0, 0.0], [1.0, 3.0, 0.0], [0.0, 4.0, 0.5]]
+                    .into_iter()
+                    .map(at)
+                    .collect(),
+                vec![0, 1, 2],
+            ),
         ];
         // OBJ text: the loader reads coordinates as f64, so each is printed
         // as the f64 of its f32 (the shortest decimal of exactly that
@@ -598,14 +609,15 @@ fn one_fingerprint_whatever_the_format_and_from_engine_buffers() {
             .map(|(name, positions, indices)| Mesh {
                 name: Some(name),
                 positions: positions.clone(),
-                indices: Some(indices.clone()),
-                mode: 4,
+                indices: (!indices.is_empty()).then(|| indices.clone()),
+                // No triangle: points.
+                mode: if indices.is_empty() { 0 } else { 4 },
             })
             .collect();
         let nodes: Vec<Value> = (0..meshes.len())
             .map(|i| json!({"mesh": i, "name": objects[i].0}))
             .collect();
-        let (doc, bin) = document(&meshes, json!(nodes), json!([{"nodes": [0, 1, 2]}]));
+        let (doc, bin) = document(&meshes, json!(nodes), json!([{"nodes": [0, 1, 2, 3, 4]}]));
         let glb_path = write_glb(&dir, &format!("model{k}.glb"), &doc, &bin);
         let buffers: Vec<(&[[f32; 3]], &[u32])> = objects
             .iter()
@@ -618,13 +630,33 @@ fn one_fingerprint_whatever_the_format_and_from_engine_buffers() {
             };
             let from_obj = scene::load_with(&obj_path, &options, &mut |_, _| {}).unwrap();
             let from_glb = scene::load_with(&glb_path, &options, &mut |_, _| {}).unwrap();
-            assert_eq!(from_obj.objects().len(), 2, "the sliver is dropped");
+            let listed = |s: &Scene| -> Vec<(String, usize)> {
+                s.objects()
+                    .iter()
+                    .map(|o| (o.name.clone(), o.triangle_count()))
+                    .collect()
+            };
+            let want: Vec<(String, usize)> = [
+                ("fan", 3),
+                ("quad", 2),
+                ("sliver", 0),
+                ("nothing", 0),
+                ("last", 1),
+            ]
+            .map(|(n, k)| (n.to_owned(), k))
+            .into();
+            assert_eq!(listed(&from_obj), want, "empty objects are listed");
+            assert_eq!(listed(&from_glb), want);
             assert_eq!(from_obj.fingerprint(), from_glb.fingerprint(), "{k} {up:?}");
             assert_eq!(
                 fingerprint_meshes(&buffers, up),
                 Ok(from_obj.fingerprint()),
                 "{k} {up:?}"
             );
+            // An empty object counts: without it the indices shift.
+            let mut without = buffers.clone();
+            without.remove(3);
+            assert_ne!(fingerprint_meshes(&without, up), Ok(from_obj.fingerprint()));
         }
         assert_eq!(
             k == 1,
@@ -890,4 +922,37 @@ fn bad_extras_are_errors_naming_the_file_and_the_node() {
             "{e:?}"
         );
     }
+}
+
+/// Empty groups are listed, not dropped (issue 15): a glTF node whose mesh
+/// is points only and one whose triangle has zero area keep their places.
+#[test]
+fn nodes_of_empty_meshes_are_listed_and_never_visible() {
+    let objects = crate::obj_load::four_objects();
+    let meshes: Vec<Mesh> = objects
+        .iter()
+        .map(|(name, tris)| {
+            let positions: Vec<[f32; 3]> = if tris.is_empty() {
+                vec![[2.0, 2.0, 2.0]]
+            } else {
+                tris.iter().flatten().map(|v| v.to_array()).collect()
+            };
+            Mesh {
+                name: Some(name),
+                positions,
+                indices: None,
+                // The empty one: a point.
+                mode: if tris.is_empty() { 0 } else { 4 },
+            }
+        })
+        .collect();
+    let nodes: Vec<Value> = objects
+        .iter()
+        .enumerate()
+        .map(|(i, (name, _))| json!({"mesh": i, "name": name}))
+        .collect();
+    let (doc, bin) = document(&meshes, json!(nodes), json!([{"nodes": [0, 1, 2, 3]}]));
+    let dir = tempfile::tempdir().unwrap();
+    let model = write_embedded(&dir, "four.gltf", doc, &bin);
+    crate::obj_load::empty_objects_are_listed_and_never_visible(&model);
 }

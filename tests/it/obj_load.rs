@@ -82,3 +82,167 @@ fn garbage_is_an_error_not_a_panic() {
 fn fuzz_corpus_loads_or_is_refused_without_panicking() {
     crate::replay_scene_corpus("obj");
 }
+
+/// The four objects of the empty-group tests, as (name, triangles): a box
+/// "a", "empty" (no triangles), "degenerate" (one triangle of zero area)
+/// and a box "b" two units further along x.
+pub(crate) fn four_objects() -> Vec<(&'static str, Vec<[glam::Vec3; 3]>)> {
+    use glam::Vec3;
+    use vis5d::scene::procedural::shapes::push_box;
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    push_box(&mut a, Vec3::ZERO, Vec3::ONE);
+    push_box(&mut b, Vec3::new(3.0, 0.0, 0.0), Vec3::new(4.0, 1.0, 1.0));
+    let flat = [
+        Vec3::new(2.0, 0.5, 0.5),
+        Vec3::new(2.5, 0.5, 0.5),
+        Vec3::new(2.2, 0.5, 0.5),
+    ];
+    vec![
+        ("a", a),
+        ("empty", vec![]),
+        ("degenerate", vec![flat]),
+        ("b", b),
+    ]
+}
+
+/// [`four_objects`] as OBJ text: `o` groups, the empty one without faces.
+fn four_objects_obj() -> String {
+    let mut text = String::new();
+    let mut base = 1;
+    for (name, tris) in four_objects() {
+        text += &format!("o {name}\n");
+        for t in &tris {
+            for v in t {
+                text += &format!("v {} {} {}\n", v.x, v.y, v.z);
+            }
+            text += &format!("f {} {} {}\n", base, base + 1, base + 2);
+            base += 3;
+        }
+    }
+    text
+}
+
+/// A model of [`four_objects`] (OBJ or glTF) loads with the empty objects
+/// in their places; they are never visible: not to either oracle, in no
+/// set of a sampled or a conservative tree (flagged always visible or
+/// not), in no query answer; the `.v5d` lists them (no triangles, no box)
+/// and `vis5d check` finds no violation.
+pub(crate) fn empty_objects_are_listed_and_never_visible(model: &std::path::Path) {
+    use glam::Vec3;
+    use serde_json::Value;
+    use vis5d::geom::Aabb;
+    use vis5d::oracle::{Oracle, OracleParams, Rasteriser};
+    use vis5d::shrink::{ShrinkOracle, ShrinkParams};
+    let s = scene::load(model).unwrap();
+    s.validate().unwrap();
+    let listed: Vec<(&str, usize)> = s
+        .objects()
+        .iter()
+        .map(|o| (o.name.as_str(), o.triangle_count()))
+        .collect();
+    assert_eq!(
+        listed,
+        [("a", 12), ("empty", 0), ("degenerate", 0), ("b", 12)]
+    );
+    assert_eq!(s.report().empty_objects, [1, 2]);
+    assert!(s.objects()[1].is_empty() && s.objects()[2].is_empty());
+    let seen = |set: &vis5d::bitset::ObjectSet| set.iter().collect::<Vec<_>>();
+    // Both oracles, from between the boxes and from a cell that is not a
+    // box (nothing proved).
+    let between = Aabb::new(Vec3::new(1.5, 0.3, 0.3), Vec3::new(2.5, 0.7, 0.7));
+    let not_a_box = Aabb::new(Vec3::NAN, Vec3::NAN);
+    let oracle = Oracle::new(&s, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    let shrink = ShrinkOracle::new(&s, ShrinkParams::default()).unwrap();
+    for cell in [between, not_a_box] {
+        assert_eq!(seen(&oracle.cell(&cell, None).visible), [0, 3], "extended");
+        assert_eq!(seen(&shrink.cell(&cell).visible), [0, 3], "shrink");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let p = |p: &std::path::Path| p.to_str().unwrap().to_owned();
+    let v5d = dir.path().join("four.v5d");
+    let flags = dir.path().join("flags.json");
+    std::fs::write(&flags, r#"{"empty": ["always_visible"]}"#).unwrap();
+    let always = vis5d::scene::ObjectFlags::ALWAYS_VISIBLE;
+    let builds: [&[&str]; 3] = [
+        &["--max-depth", "4"],
+        &["--max-depth", "4", "--flags", &p(&flags), "--slices", "2"],
+        &["--conservative", "--max-depth", "2", "--slices", "2"],
+    ];
+    for extra in builds {
+        let (m, o) = (p(model), p(&v5d));
+        let mut args = vec!["build", m.as_str(), "-o", o.as_str()];
+        args.extend(extra);
+        let out = crate::vis5d(&args);
+        assert!(
+            out.status.success(),
+            "{extra:?}: {}",
+            crate::text(&out.stderr)
+        );
+        let bytes = std::fs::read(&v5d).unwrap();
+        let file = vis5d::codec::read_file(&bytes, Default::default()).unwrap();
+        let table: Vec<(&str, u32, bool)> = file
+            .objects
+            .iter()
+            .map(|o| (o.id.as_str(), o.triangles, o.bounds.is_some()))
+            .collect();
+        assert_eq!(
+            table,
+            [
+                ("a", 12, true),
+                ("empty", 0, false),
+                ("degenerate", 0, false),
+                ("b", 12, true)
+            ],
+            "{extra:?}"
+        );
+        assert_eq!(
+            file.objects[1].flags.contains(always),
+            extra.contains(&"--flags")
+        );
+        for node in file.tree.nodes() {
+            assert!(!node.set.contains(1) && !node.set.contains(2), "{extra:?}");
+        }
+        assert!(file.tree.nodes()[0].set.contains(0) && file.tree.nodes()[0].set.contains(3));
+        if let Some(slices) = &file.slices {
+            assert!(slices.leaves.iter().flatten().all(|e| e.0 != 1 && e.0 != 2));
+        }
+        // Inside the view box and outside it (every object with
+        // triangles in the frustum).
+        for (pos, dir, want) in [
+            ("2,0.5,0.5", "1,0,0", None),
+            ("2,-3,0.5", "0,1,0", Some([0, 3])),
+        ] {
+            let out = crate::vis5d(&[
+                "query", &o, "--pos", pos, "--dir", dir, "--fov", "120", "--json", "--ids",
+            ]);
+            assert!(out.status.success(), "{}", crate::text(&out.stderr));
+            let rows: Value = serde_json::from_slice(&out.stdout).unwrap();
+            let indices: Vec<u64> = rows
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|r| r["index"].as_u64().unwrap())
+                .collect();
+            assert!(
+                !indices.contains(&1) && !indices.contains(&2),
+                "{indices:?}"
+            );
+            if let Some(want) = want {
+                assert_eq!(indices, want);
+            }
+        }
+        let out = crate::vis5d(&["check", &m, &o, "--json"]);
+        assert!(out.status.success(), "{}", crate::text(&out.stderr));
+        let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(report["violations"], 0, "{extra:?}: {report}");
+    }
+}
+
+/// Empty groups are listed, not dropped (issue 15): an OBJ group without
+/// faces and one of zero-area faces only keep their places.
+#[test]
+fn empty_groups_are_listed_and_never_visible() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = write(&dir, "four.obj", four_objects_obj().as_bytes());
+    empty_objects_are_listed_and_never_visible(&model);
+}
