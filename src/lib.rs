@@ -57,7 +57,7 @@
 //!     // Answer::Everything: the eye is outside the baked view box.
 //!     assert_eq!(answer, vis5d::query::Answer::Tree);
 //!     for object in visible.iter() {
-//!         let _name = &pvs.objects()[object].name; // draw(object)
+//!         let _name = pvs.object(object).map(|o| o.name()); // draw(object)
 //!     }
 //!     assert!(visible.count() < pvs.object_count());
 //! }

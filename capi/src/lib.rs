@@ -107,16 +107,14 @@ fn answer_of(a: Answer) -> Vis5dAnswer {
 fn handle(pvs: Pvs) -> *mut Vis5dPvs {
     let names = pvs
         .objects()
-        .iter()
         .map(|o| {
-            let cut = o.name.split('\0').next().unwrap_or_default();
+            let cut = o.name().split('\0').next().unwrap_or_default();
             CString::new(cut).unwrap_or_default()
         })
         .collect();
     let ids = pvs
         .objects()
-        .iter()
-        .map(|o| CString::new(o.id.as_str()).unwrap_or_default())
+        .map(|o| CString::new(o.id()).unwrap_or_default())
         .collect();
     Box::into_raw(Box::new(Vis5dPvs { pvs, names, ids }))
 }
@@ -356,8 +354,8 @@ const _: () = assert!(
 pub unsafe extern "C" fn vis5d_object_flags(pvs: *const Vis5dPvs, object: usize) -> u8 {
     // SAFETY: null or live by contract.
     unsafe { pvs.as_ref() }
-        .and_then(|h| h.pvs.objects().get(object))
-        .map_or(0, |o| o.flags.bits())
+        .and_then(|h| h.pvs.object(object))
+        .map_or(0, |o| o.flags().bits())
 }
 
 /// The index of the object whose id is `id` (NUL-terminated UTF-8) into

@@ -170,7 +170,7 @@ fn bad_arguments_are_refused_and_answers_match_the_rust_api() {
         assert!(vis5d_object_id(pvs, n).is_null());
         for o in [0, n / 2, n - 1] {
             let id = CStr::from_ptr(vis5d_object_id(pvs, o));
-            assert_eq!(id.to_str().unwrap(), rust.objects()[o].id);
+            assert_eq!(id.to_str().unwrap(), rust.object(o).unwrap().id());
             let mut found = usize::MAX;
             assert_eq!(
                 vis5d_object_index(pvs, id.as_ptr(), &mut found),
@@ -185,7 +185,7 @@ fn bad_arguments_are_refused_and_answers_match_the_rust_api() {
             Vis5dStatus::BadArgument
         );
         let name = CStr::from_ptr(vis5d_object_name(pvs, 0)).to_str().unwrap();
-        assert_eq!(name, rust.objects()[0].name);
+        assert_eq!(name, rust.object(0).unwrap().name());
         // Flags as the build set them (common::small_file).
         assert_eq!(vis5d_object_flags(pvs, 0), VIS5D_FLAG_NEVER_OCCLUDER);
         assert_eq!(vis5d_object_flags(pvs, n - 1), VIS5D_FLAG_ALWAYS_VISIBLE);

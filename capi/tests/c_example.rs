@@ -85,7 +85,7 @@ fn the_c_example_compiles_runs_and_agrees_with_rust() {
     assert!(out.contains(&line), "{line} not in:\n{out}");
     for o in set.iter() {
         assert!(
-            out.contains(&format!("\n  {}\n", pvs.objects()[o].name)),
+            out.contains(&format!("\n  {}\n", pvs.object(o).unwrap().name())),
             "{out}"
         );
     }

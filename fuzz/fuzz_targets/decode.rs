@@ -30,6 +30,6 @@ fuzz_target!(|data: &[u8]| {
         let _ = pvs.query_range(&Aabb::new(p, p), (f * 6.0 - 3.0, -1.0), (0.0, f * 3.0), &mut out);
         // With slices (version 4): the triangle ranges too.
         let _ = pvs.query_view_triangles(&View::square(p, dir, 90.0), &mut out);
-        let _ = pvs.leaf_set([p.x, p.y, p.z, f, f]);
+        let _ = pvs.leaf_set([p.x, p.y, p.z, f, f], &mut out);
     }
 });

@@ -168,7 +168,7 @@ pub fn run(args: &QueryArgs) -> Result<()> {
             let rows: Vec<TrianglesJson> = drawn
                 .iter()
                 .map(|d| TrianglesJson {
-                    object: pvs.objects()[d.object as usize].name.as_str(),
+                    object: pvs.object(d.object as usize).map_or("", |o| o.name()),
                     triangles: d.count(),
                     ranges: d.ranges.iter().map(|r| [r.start, r.end]).collect(),
                 })
@@ -182,7 +182,8 @@ pub fn run(args: &QueryArgs) -> Result<()> {
                 let total: u64 = rows.iter().map(|r| r.triangles).sum();
                 let all: u64 = set
                     .iter()
-                    .map(|o| u64::from(pvs.objects()[o].triangles))
+                    .filter_map(|o| pvs.object(o))
+                    .map(|o| u64::from(o.triangles()))
                     .sum();
                 if many {
                     writeln!(out, "# view {i}: {} objects", rows.len())?;
@@ -222,10 +223,8 @@ pub fn run(args: &QueryArgs) -> Result<()> {
         }
         let names: Vec<&str> = set
             .iter()
-            .map(|o| {
-                let object = &pvs.objects()[o];
-                if args.ids { &object.id } else { &object.name }.as_str()
-            })
+            .filter_map(|o| pvs.object(o))
+            .map(|o| if args.ids { o.id() } else { o.name() })
             .collect();
         if args.json {
             if many && i > 0 {
@@ -234,11 +233,12 @@ pub fn run(args: &QueryArgs) -> Result<()> {
             if args.ids {
                 let rows: Vec<IdJson> = set
                     .iter()
-                    .map(|o| IdJson {
-                        index: o,
-                        id: &pvs.objects()[o].id,
-                        name: &pvs.objects()[o].name,
-                        flags: pvs.objects()[o].flags.names().collect(),
+                    .filter_map(|o| Some((o, pvs.object(o)?)))
+                    .map(|(index, o)| IdJson {
+                        index,
+                        id: o.id(),
+                        name: o.name(),
+                        flags: o.flags().names().collect(),
                     })
                     .collect();
                 serde_json::to_writer(&mut out, &rows)?;

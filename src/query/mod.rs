@@ -49,14 +49,19 @@ use std::path::{Path, PathBuf};
 use glam::{DMat3, DVec3, DVec4, Mat4, Vec3};
 
 use crate::bitset::ObjectSet;
-use crate::codec::{CodecError, Coding, FileObject, ReadLimits, read_file};
-use crate::geom::cell::{Cell, DIMS, grid_value};
+use crate::codec::{CodecError, Coding, ReadLimits, read_file};
+use crate::geom::cell::{Cell, DIMS};
 use crate::geom::{Aabb, Frame};
 use crate::slices::TreeSlices;
-use crate::tree::LeafRecord;
 
+mod query_objects;
 mod query_prefetch;
+mod query_tree;
 mod query_triangles;
+
+pub use query_objects::ObjectInfo;
+use query_objects::ObjectTable;
+use query_tree::CodedTree;
 
 pub use query_prefetch::Delta;
 pub use query_triangles::ObjectTriangles;
@@ -123,19 +128,6 @@ pub struct SetSizeError {
     /// [`Pvs::answer_words`]).
     pub expected: usize,
 }
-
-/// A node as queries need it: the split value is precomputed.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct QueryNode {
-    /// The split dimension, or [`LEAF`].
-    dim: u8,
-    /// The split value.
-    value: f32,
-    /// The second child.
-    above: u32,
-}
-
-const LEAF: u8 = u8::MAX;
 
 /// A camera: a position (or a small box around it) and a frustum.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -598,23 +590,15 @@ pub struct Pvs {
     fingerprint: u64,
     frame: Frame,
     params: String,
-    objects: Vec<FileObject>,
+    objects: ObjectTable,
     root: Cell,
-    nodes: Vec<QueryNode>,
-    /// `words` words per node, in node order.
-    sets: Vec<u64>,
+    /// The splits and the coded sets (`query_tree`).
+    tree: CodedTree,
     words: usize,
-    /// Per node (leaves only meaningful), when the file has leaf records.
-    records: Option<Vec<LeafRecord>>,
     /// The leaves' hidden slices, when the file has them (version 4).
     slices: Option<TreeSlices>,
     /// Every object's bit: the answer outside the view box.
     all: Vec<u64>,
-    /// The objects in the order of their ids (for [`Pvs::object_index`]).
-    by_id: Vec<u32>,
-    /// Per node, its rank among the leaves in preorder (leaves only
-    /// meaningful); empty without slices.
-    leaf_rank: Vec<u32>,
 }
 
 impl Pvs {
@@ -634,8 +618,8 @@ impl Pvs {
 
     /// Decodes and checks a `.v5d` file held in memory.
     pub fn from_bytes(bytes: &[u8]) -> Result<Pvs, CodecError> {
-        // The decoded tree and the flat copy made of it below coexist for a
-        // while: each gets half of the documented budget, so that a
+        // The decoded tree and the coded copy made of it below coexist for
+        // a while: each gets half of the documented budget, so that a
         // crafted file cannot make a load cost twice the budget.
         let budget = ReadLimits::default();
         let limits = ReadLimits {
@@ -647,66 +631,15 @@ impl Pvs {
         let tree = file.tree;
         let (root, grid_bits) = (tree.root_cell(), tree.grid_bits());
         let n_objects = tree.object_count();
-        let mut by_id: Vec<u32> = (0..n_objects as u32).collect();
-        by_id.sort_unstable_by(|&a, &b| {
-            file.objects[a as usize]
-                .id
-                .cmp(&file.objects[b as usize].id)
-        });
+        let objects = ObjectTable::new(&file.objects)
+            .ok_or_else(|| CodecError::TooLarge("the names and ids pass 4 GiB".into()))?;
         let words = n_objects.div_ceil(64);
-        let (tree_nodes, leaf_records) = tree.into_parts();
-        let mut leaf_records = leaf_records.map(|r| r.into_iter());
-        let mut records = leaf_records
-            .as_ref()
-            .map(|_| Vec::with_capacity(tree_nodes.len()));
-        let mut nodes = Vec::with_capacity(tree_nodes.len());
-        let mut sets = Vec::with_capacity(tree_nodes.len() * words);
-        // Replay the cells in preorder to precompute split values; each
-        // node's set is freed once copied.
-        let mut stack = vec![root];
-        for node in tree_nodes {
-            let cell = stack.pop().expect("preorder: one cell per node");
-            sets.extend_from_slice(node.set.words());
-            if let (Some(records), Some(leaf_records)) = (&mut records, &mut leaf_records) {
-                let record = match node.split {
-                    None => leaf_records.next().expect("one record per leaf"),
-                    Some(_) => LeafRecord::default(),
-                };
-                records.push(record);
-            }
-            match node.split {
-                None => nodes.push(QueryNode {
-                    dim: LEAF,
-                    value: 0.0,
-                    above: 0,
-                }),
-                Some(s) => {
-                    let d = s.dim as usize;
-                    let value = grid_value(cell.lo[d], cell.hi[d], s.code, grid_bits);
-                    let (below, above) = cell.split(s.dim as usize, value);
-                    stack.push(above);
-                    stack.push(below);
-                    nodes.push(QueryNode {
-                        dim: s.dim,
-                        value,
-                        above: s.above,
-                    });
-                }
-            }
-        }
-        let leaf_rank = if slices.is_some() {
-            let mut rank = 0;
-            nodes
-                .iter()
-                .map(|n| {
-                    let r = rank;
-                    rank += u32::from(n.dim == LEAF);
-                    r
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
+        // The leaf records stay in the file: they tell how sure a leaf's
+        // set is (`vis5d stat`, `VisTree::leaf_records`), which no query
+        // needs.
+        let (tree_nodes, _records) = tree.into_parts();
+        let coded = CodedTree::new(root, grid_bits, n_objects, &tree_nodes)?;
+        drop(tree_nodes);
         // Every object that has triangles: one without (an empty group of
         // the model) is never visible.
         let mut all = ObjectSet::full(n_objects);
@@ -721,38 +654,31 @@ impl Pvs {
             fingerprint: file.fingerprint,
             frame: file.frame,
             params: file.params,
-            objects: file.objects,
+            objects,
             root,
-            nodes,
-            sets,
+            tree: coded,
             words,
-            records,
             slices,
-            leaf_rank,
             all,
-            by_id,
         })
     }
 
-    /// The objects, in scene order: names and triangle counts.
-    pub fn objects(&self) -> &[FileObject] {
-        &self.objects
+    /// The objects, in scene order (bit i of an answer is the i-th):
+    /// names, ids, triangle counts, bounds, flags.
+    pub fn objects(&self) -> impl ExactSizeIterator<Item = ObjectInfo<'_>> + '_ {
+        (0..self.objects.len()).map(|i| self.objects.at(i))
     }
 
-    /// The bounding box of object `object` in local coordinates, as the
-    /// file stores it (quantised outwards); `None` for a version 1 file.
-    pub fn object_bounds(&self, object: usize) -> Option<Aabb> {
-        self.objects[object].bounds
+    /// Object `object` (bit `object` of an answer); `None` past the last.
+    pub fn object(&self, object: usize) -> Option<ObjectInfo<'_>> {
+        self.objects.get(object)
     }
 
-    /// The object whose id is `id` ([`FileObject::id`]: its name, or
-    /// `name#k` where names repeat, or what the build's `--ids` said), by
+    /// The object whose id is `id` ([`ObjectInfo::id`]: its name, or
+    /// `name#k` where names repeat, or the id given at build time), by
     /// binary search; `None` when no object has it.
     pub fn object_index(&self, id: &str) -> Option<usize> {
-        self.by_id
-            .binary_search_by(|&o| self.objects[o as usize].id.as_str().cmp(id))
-            .ok()
-            .map(|k| self.by_id[k] as usize)
+        self.objects.index(id)
     }
 
     /// The number of objects (the capacity of every answer).
@@ -812,7 +738,7 @@ impl Pvs {
 
     /// The number of tree nodes.
     pub fn node_count(&self) -> usize {
-        self.nodes.len()
+        self.tree.node_count()
     }
 
     /// The bytes the loaded file takes in memory: the struct and every
@@ -820,24 +746,11 @@ impl Pvs {
     /// budgets for; notes/query.md compares it with the files' sizes.
     pub fn memory_bytes(&self) -> usize {
         use std::mem::size_of;
-        let objects: usize = self.objects.capacity() * size_of::<FileObject>()
-            + self
-                .objects
-                .iter()
-                .map(|o| o.name.capacity() + o.id.capacity())
-                .sum::<usize>()
-            + self.by_id.capacity() * 4;
         size_of::<Self>()
             + self.params.capacity()
-            + objects
-            + self.nodes.capacity() * size_of::<QueryNode>()
-            + self.sets.capacity() * 8
-            + self
-                .records
-                .as_ref()
-                .map_or(0, |r| r.capacity() * size_of::<LeafRecord>())
+            + self.objects.memory_bytes()
+            + self.tree.memory_bytes()
             + self.slices.as_ref().map_or(0, TreeSlices::memory_bytes)
-            + self.leaf_rank.capacity() * 4
             + self.all.capacity() * 8
     }
 
@@ -846,34 +759,26 @@ impl Pvs {
         ObjectSet::new(self.objects.len())
     }
 
-    fn set_words(&self, node: usize) -> &[u64] {
-        &self.sets[node * self.words..(node + 1) * self.words]
-    }
-
-    /// The node index of the leaf holding the ray point `p`.
-    fn leaf_of(&self, p: [f32; DIMS]) -> usize {
-        let mut i = 0;
-        while self.nodes[i].dim != LEAF {
-            let n = self.nodes[i];
-            i = if p[n.dim as usize] < n.value {
-                i + 1
-            } else {
-                n.above as usize
-            };
-        }
-        i
-    }
-
     /// The set of the leaf holding the ray point `p` = (x, y, z, theta,
-    /// phi), local coordinates, as words of bits (bit i = object i), and
-    /// [`Answer::Tree`]; every object (with triangles) and
-    /// [`Answer::Everything`] for a point outside the view box ([`Pvs::view_box`]), a direction's
-    /// angles outside their ranges or a NaN.
-    pub fn leaf_set(&self, p: [f32; DIMS]) -> (&[u64], Answer) {
+    /// phi), local coordinates, into `out` (bit i = object i), and
+    /// [`Answer::Tree`]; every object with triangles and
+    /// [`Answer::Everything`] for a
+    /// point outside the view box ([`Pvs::view_box`]), a direction's
+    /// angles outside their ranges or a NaN. An error, `out` untouched,
+    /// when `out` is not of the file's size.
+    pub fn leaf_set(&self, p: [f32; DIMS], out: &mut ObjectSet) -> Result<Answer, SetSizeError> {
+        self.check_set(out)?;
+        Ok(self.leaf_into(p, out.words_mut()))
+    }
+
+    /// [`Pvs::leaf_set`] into words of the file's size.
+    fn leaf_into(&self, p: [f32; DIMS], out: &mut [u64]) -> Answer {
         if self.holds(p) {
-            (self.set_words(self.leaf_of(p)), Answer::Tree)
+            self.tree.leaf(p, Some(out));
+            Answer::Tree
         } else {
-            (&self.all, Answer::Everything)
+            out.copy_from_slice(&self.all);
+            Answer::Everything
         }
     }
 
@@ -898,30 +803,6 @@ impl Pvs {
                 expected: self.objects.len(),
             })
         }
-    }
-
-    /// How sure the set of the leaf holding the ray point `p` (local
-    /// coordinates) is: the objects its build called invisible, the fewest
-    /// rays behind one, the objects kept undecided
-    /// ([`LeafRecord::largest_missed_fraction`] reads the residual risk).
-    /// `None` for files before version 3, and outside the root cell (see
-    /// [`Pvs::leaf_set`]).
-    pub fn leaf_record(&self, p: [f32; DIMS]) -> Option<LeafRecord> {
-        let records = self.records.as_ref()?;
-        self.holds(p).then(|| records[self.leaf_of(p)])
-    }
-
-    /// The records of all leaves, in preorder, when the file has them.
-    pub fn leaf_records(&self) -> Option<Vec<LeafRecord>> {
-        let records = self.records.as_ref()?;
-        Some(
-            self.nodes
-                .iter()
-                .zip(records)
-                .filter(|(n, _)| n.dim == LEAF)
-                .map(|(_, r)| *r)
-                .collect(),
-        )
     }
 
     /// As [`Pvs::query_range`], with the box of positions `[min, max]` in
@@ -1084,8 +965,10 @@ impl Pvs {
             while bits != 0 {
                 let b = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
-                if let Some(Some(bounds)) = self.objects.get(w * 64 + b).map(|o| &o.bounds)
-                    && !frustum.may_see(bounds)
+                let o = w * 64 + b;
+                if o < self.objects.len()
+                    && let Some(bounds) = self.objects.bounds(o)
+                    && !frustum.may_see(&bounds)
                 {
                     *word &= !(1u64 << b);
                 }
@@ -1153,31 +1036,9 @@ impl Pvs {
             Clipped::Range(range) => range,
         };
         // The node sets are ObjectSet words over the same objects (bits past
-        // the capacity 0), so the descent ORs raw words.
-        let mut descent = Descent { range, out };
-        self.visit(0, self.root, &mut descent);
+        // the capacity 0), so the walk ORs raw words.
+        self.tree.union(&range, out);
         Answer::Tree
-    }
-
-    fn visit(&self, i: usize, cell: Cell, descent: &mut Descent<'_>) {
-        let n = self.nodes[i];
-        let range = &descent.range;
-        let covered = (0..DIMS).all(|d| range.lo[d] <= cell.lo[d] && range.hi[d] >= cell.hi[d]);
-        if n.dim == LEAF || covered {
-            for (a, b) in descent.out.iter_mut().zip(self.set_words(i)) {
-                *a |= b;
-            }
-            return;
-        }
-        let d = n.dim as usize;
-        let (below, above) = cell.split(d, n.value);
-        let (lo, hi) = (range.lo[d], range.hi[d]);
-        if lo < n.value {
-            self.visit(i + 1, below, descent);
-        }
-        if hi >= n.value {
-            self.visit(n.above as usize, above, descent);
-        }
     }
 }
 
@@ -1189,15 +1050,6 @@ enum Clipped {
     Everything,
     /// The cell to descend with.
     Range(Cell),
-}
-
-/// A range query's descent: the range and the answer's words, behind one
-/// reference. The words as a slice argument of `visit` (two more registers
-/// through the recursion) cost 4-5% more instructions per view query
-/// (notes/query.md, "bitvec").
-struct Descent<'a> {
-    range: Cell,
-    out: &'a mut [u64],
 }
 
 #[cfg(test)]

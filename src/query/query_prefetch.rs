@@ -69,9 +69,19 @@ impl Pvs {
     ) -> Result<Answer, SetSizeError> {
         self.check_set(&delta.entering)?;
         self.check_set(&delta.leaving)?;
-        let (a, answer_a) = self.leaf_set(from);
-        let (b, answer_b) = self.leaf_set(to);
-        self.delta_words(a, b, delta);
+        // The two leaves' sets, then the differences in place.
+        let answer_a = self.leaf_into(from, delta.leaving.words_mut());
+        let answer_b = self.leaf_into(to, delta.entering.words_mut());
+        for (e, l) in delta
+            .entering
+            .words_mut()
+            .iter_mut()
+            .zip(delta.leaving.words_mut().iter_mut())
+        {
+            let (a, b) = (*l, *e);
+            *e = b & !a;
+            *l = a & !b;
+        }
         Ok(answer_a.max(answer_b))
     }
 

@@ -14,10 +14,9 @@ use std::ops::Range;
 
 use glam::DVec3;
 
-use super::{Clipped, LEAF, Pvs, SetSizeError, View, frustum_angles};
+use super::{Clipped, Pvs, SetSizeError, View, frustum_angles};
 use crate::bitset::ObjectSet;
 use crate::geom::Aabb;
-use crate::geom::cell::DIMS;
 use crate::slices::{SliceIndex, TreeSlices};
 
 /// One visible object's triangles to draw.
@@ -103,7 +102,7 @@ impl Pvs {
         self.check_set(objects)?;
         let whole = |o: usize| ObjectTriangles {
             object: o as u32,
-            ranges: match self.objects[o].triangles {
+            ranges: match self.objects.triangles(o) {
                 0 => Vec::new(),
                 n => std::iter::once(0..n).collect(),
             },
@@ -111,15 +110,22 @@ impl Pvs {
         let Some(slices) = &self.slices else {
             return Ok(objects.iter().map(whole).collect());
         };
-        let mut leaves = Vec::new();
+        let (mut ranks, mut sets) = (Vec::new(), Vec::new());
         for &(t0, t1, p0, p1) in boxes {
-            if !self.leaves_met(positions, (t0, t1), (p0, p1), &mut leaves) {
+            if !self.leaves_met(positions, (t0, t1), (p0, p1), &mut ranks, &mut sets) {
                 // Outside the tree or not a range: nothing culled.
                 return Ok(objects.iter().map(whole).collect());
             }
         }
-        leaves.sort_unstable();
-        leaves.dedup();
+        // The leaves met, each once, with their sets.
+        let words = self.words;
+        let mut leaves: Vec<(u32, &[u64])> = ranks
+            .iter()
+            .enumerate()
+            .map(|(k, &rank)| (rank, &sets[k * words..(k + 1) * words]))
+            .collect();
+        leaves.sort_unstable_by_key(|&(rank, _)| rank);
+        leaves.dedup_by_key(|&mut (rank, _)| rank);
         Ok(objects
             .iter()
             .map(|o| {
@@ -127,14 +133,14 @@ impl Pvs {
                 // once; a leaf without any draws it whole.
                 let holding: Option<Vec<_>> = leaves
                     .iter()
-                    .filter(|&&node| self.set_words(node)[o / 64] >> (o % 64) & 1 == 1)
-                    .map(|&node| slices.hidden(self.leaf_rank[node] as usize, o))
+                    .filter(|&&(_, set)| set[o / 64] >> (o % 64) & 1 == 1)
+                    .map(|&(rank, _)| slices.hidden(rank as usize, o))
                     .collect();
                 let Some(holding) = holding.filter(|h| !h.is_empty()) else {
                     return whole(o);
                 };
                 let mut ranges: Vec<Range<u32>> = Vec::new();
-                for t in 0..self.objects[o].triangles {
+                for t in 0..self.objects.triangles(o) {
                     let culled_in = |indices: &&[SliceIndex]| {
                         slices
                             .sliced
@@ -155,39 +161,25 @@ impl Pvs {
             .collect())
     }
 
-    /// Adds to `leaves` the nodes of the leaves the range meets (clipped as
-    /// [`Pvs::query_range`] clips it); `false` when the range has a NaN or
-    /// reaches outside the tree's box of positions (the query then culls
-    /// nothing). An empty range meets no leaf.
+    /// Appends to `ranks` the preorder ranks of the leaves the range
+    /// meets (clipped as [`Pvs::query_range`] clips it), and their sets to
+    /// `sets` ([`Pvs::answer_words`] words each); `false` when the range
+    /// has a NaN or reaches outside the tree's box of positions (the query
+    /// then culls nothing). An empty range meets no leaf.
     fn leaves_met(
         &self,
         positions: &Aabb,
         theta: (f32, f32),
         phi: (f32, f32),
-        leaves: &mut Vec<usize>,
+        ranks: &mut Vec<u32>,
+        sets: &mut Vec<u64>,
     ) -> bool {
         let range = match self.clip_range(positions, theta, phi) {
             Clipped::Empty => return true,
             Clipped::Everything => return false,
             Clipped::Range(range) => range,
         };
-        let mut stack = vec![(0usize, self.root)];
-        while let Some((i, cell)) = stack.pop() {
-            let n = self.nodes[i];
-            if n.dim == LEAF {
-                leaves.push(i);
-                continue;
-            }
-            let d = n.dim as usize;
-            debug_assert!(d < DIMS);
-            let (below, above) = cell.split(d, n.value);
-            if range.lo[d] < n.value {
-                stack.push((i + 1, below));
-            }
-            if range.hi[d] >= n.value {
-                stack.push((n.above as usize, above));
-            }
-        }
+        self.tree.leaves_met(&range, ranks, sets);
         true
     }
 }

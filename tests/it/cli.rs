@@ -391,7 +391,7 @@ fn objects_have_stable_ids() {
     let built = vis5d(&["build", m, "-o", o, "--ids", i, "--max-depth", "4"]);
     assert!(built.status.success(), "{}", text(&built.stderr));
     let pvs = vis5d::query::Pvs::load(&out).unwrap();
-    let got: Vec<&str> = pvs.objects().iter().map(|o| o.id.as_str()).collect();
+    let got: Vec<&str> = pvs.objects().map(|o| o.id()).collect();
     assert_eq!(got, ["floor", "crate#1", "crate-blue", "L-17"]);
     assert_eq!(pvs.object_index("crate-blue"), Some(2));
     assert_eq!(pvs.object_index("crate#2"), None);
@@ -428,7 +428,7 @@ fn objects_have_stable_ids() {
     ]);
     assert!(built.status.success(), "{}", text(&built.stderr));
     let pvs = vis5d::query::Pvs::load(&plain).unwrap();
-    let got: Vec<&str> = pvs.objects().iter().map(|o| o.id.as_str()).collect();
+    let got: Vec<&str> = pvs.objects().map(|o| o.id()).collect();
     assert_eq!(got, ["floor", "crate#1", "crate#2", "lamp"]);
     // Bad id files: refused before the build, naming the file.
     for (content, says) in [

@@ -175,7 +175,7 @@ fn flags_go_through_the_file_the_query_and_check() {
     ]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     let pvs = vis5d::query::Pvs::load(&v5d).unwrap();
-    let flags: Vec<ObjectFlags> = pvs.objects().iter().map(|o| o.flags).collect();
+    let flags: Vec<ObjectFlags> = pvs.objects().map(|o| o.flags()).collect();
     assert_eq!(flags, flags_of_gallery());
     // Looking at the glass from the cell: the statue and the sky.
     let out = vis5d(&[
@@ -312,8 +312,7 @@ fn flags_from_gltf_extras_are_honoured_and_a_sidecar_adds_to_them() {
         vis5d::query::Pvs::load(&v5d)
             .unwrap()
             .objects()
-            .iter()
-            .map(|o| o.flags)
+            .map(|o| o.flags())
             .collect::<Vec<ObjectFlags>>()
     };
     assert_eq!(build(&[]), flags_of_gallery());

@@ -763,8 +763,7 @@ fn extras_ids_and_flags_reach_the_file_and_sidecars_override_and_add() {
     let v5d = dir.path().join("x.v5d");
     let table = |pvs: &Pvs| -> Vec<(String, ObjectFlags)> {
         pvs.objects()
-            .iter()
-            .map(|o| (o.id.clone(), o.flags))
+            .map(|o| (o.id().to_owned(), o.flags()))
             .collect()
     };
     let (n, a) = (ObjectFlags::NEVER_OCCLUDER, ObjectFlags::ALWAYS_VISIBLE);

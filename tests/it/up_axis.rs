@@ -149,7 +149,7 @@ fn a_scene_turned_and_built_with_its_up_axis_gives_the_same_tree_and_answers() {
     let names = |objects: Vec<usize>| -> Vec<String> {
         objects
             .into_iter()
-            .map(|o| y_pvs.objects()[o].name.clone())
+            .map(|o| y_pvs.object(o).unwrap().name().to_owned())
             .collect()
     };
     let look = View::look(

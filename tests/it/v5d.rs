@@ -65,6 +65,7 @@ fn files_round_trip_in_every_coding() {
 fn the_leaf_found_by_the_query_holds_the_builders_set() {
     let (_, _, tree) = apartment();
     let pvs = Pvs::from_bytes(&file_bytes(None)).unwrap();
+    let mut out = pvs.new_set();
     let root = tree.root_cell();
     let mut rng = Pcg64::seed_from_u64(11);
     for _ in 0..20_000 {
@@ -76,10 +77,8 @@ fn the_leaf_found_by_the_query_holds_the_builders_set() {
             rng.random(),
         ]);
         let leaf = tree.locate(p);
-        assert_eq!(
-            pvs.leaf_set(p),
-            (tree.nodes()[leaf].set.words(), Answer::Tree)
-        );
+        assert_eq!(pvs.leaf_set(p, &mut out), Ok(Answer::Tree));
+        assert_eq!(out, tree.nodes()[leaf].set);
     }
 }
 
@@ -240,13 +239,13 @@ fn odd_ranges_are_answered_safely() {
         [f32::NAN, 2.6, 1.3, 0.0, 1.0],
         [b.center().x, b.center().y, b.center().z, 0.0, 4.0],
     ] {
-        let (words, answer) = pvs.leaf_set(p);
-        assert_eq!(answer, Answer::Everything, "{p:?}");
-        assert_eq!(ObjectSet::from_words(n, words.to_vec()).unwrap().count(), n);
-        assert_eq!(pvs.leaf_record(p), None);
+        let mut all = pvs.new_set();
+        assert_eq!(pvs.leaf_set(p, &mut all), Ok(Answer::Everything), "{p:?}");
+        assert_eq!(all.count(), n);
     }
     let centre = [b.center().x, b.center().y, b.center().z, 0.0, 1.0];
-    assert_eq!(pvs.leaf_set(centre).1, Answer::Tree);
+    assert_eq!(pvs.leaf_set(centre, &mut pvs.new_set()), Ok(Answer::Tree));
+    assert!(pvs.leaf_set(centre, &mut ObjectSet::new(n + 1)).is_err());
     // A set of another size: an error, the set untouched; never a
     // truncated answer or a panic.
     let inside_view = View::square(b.center(), Vec3::X, 90.0);
@@ -498,17 +497,8 @@ fn leaf_records_round_trip_and_lies_are_refused() {
     let good = file_bytes(None);
     let f = codec::read_file(&good, ReadLimits::default()).unwrap();
     assert_eq!(f.tree.leaf_records(), Some(records));
+    // The runtime does not hold them (no query needs them).
     let pvs = Pvs::from_bytes(&good).unwrap();
-    assert_eq!(pvs.leaf_records().as_deref(), Some(records));
-    for leaf in tree.leaves().iter().step_by(37) {
-        let p = leaf.cell.sample([0.5; DIMS]);
-        // Records are in preorder: the leaves among the nodes before it.
-        let k = tree.nodes()[..leaf.node]
-            .iter()
-            .filter(|n| n.split.is_none())
-            .count();
-        assert_eq!(pvs.leaf_record(p), Some(records[k]));
-    }
     // The same file as version 2: the records' length field and the
     // records go (and version 4's slices' length), the version says 2.
     // The records and their u32 length come before the slices' length (0
@@ -550,8 +540,7 @@ fn leaf_records_round_trip_and_lies_are_refused() {
         codec::read_file(&good, ReadLimits::default()).unwrap().tree
     );
     assert!(old3.slices.is_none());
-    let pvs2 = Pvs::from_bytes(&v2).unwrap();
-    assert_eq!(pvs2.leaf_record(tree.root_cell().sample([0.5; DIMS])), None);
+    assert!(Pvs::from_bytes(&v2).is_ok());
     // Records that lie: a count that does not match, a varint that runs
     // off the end, bytes left over.
     let with_records = |records: &[u8]| {
@@ -628,7 +617,11 @@ fn deltas_and_prefetch_answer_as_the_set_differences() {
         let (a, b) = (p(&mut rng), p(&mut rng));
         assert_eq!(pvs.leaf_delta(a, b, &mut delta), Ok(Answer::Tree));
         let n = pvs.object_count();
-        let set = |p| ObjectSet::from_words(n, pvs.leaf_set(p).0.to_vec()).unwrap();
+        let set = |p| {
+            let mut s = ObjectSet::new(n);
+            pvs.leaf_set(p, &mut s).unwrap();
+            s
+        };
         let (mut enter, mut leave) = (set(b), set(a));
         enter.subtract(&set(a));
         leave.subtract(&set(b));

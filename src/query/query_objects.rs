@@ -1,0 +1,219 @@
+//! The object table of a loaded file, as queries and engines read it: one
+//! 40-byte row per object and one string holding the names and the ids
+//! (an id is stored only where it is not the name, as it mostly is).
+
+use glam::Vec3;
+
+use crate::codec::{FileObject, ObjectFlags};
+use crate::geom::Aabb;
+
+/// One object of a loaded file ([`super::Pvs::object`],
+/// [`super::Pvs::objects`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ObjectInfo<'a> {
+    name: &'a str,
+    id: &'a str,
+    triangles: u32,
+    bounds: Option<Aabb>,
+    flags: ObjectFlags,
+}
+
+impl<'a> ObjectInfo<'a> {
+    /// The object's name in the scene (OBJ `o`/`g` name, glTF node or
+    /// mesh name); names may repeat.
+    pub fn name(&self) -> &'a str {
+        self.name
+    }
+
+    /// Its id, unique in the file: the name where names are unique,
+    /// `name#k` where they repeat, or the id given at build time
+    /// ([`crate::codec::default_ids`]).
+    pub fn id(&self) -> &'a str {
+        self.id
+    }
+
+    /// Its triangle count (what drawing it costs).
+    pub fn triangles(&self) -> u32 {
+        self.triangles
+    }
+
+    /// Its bounding box in the tree's local coordinates, quantised
+    /// outwards (it holds the object); `None` when the file does not say
+    /// (version 1).
+    pub fn bounds(&self) -> Option<Aabb> {
+        self.bounds
+    }
+
+    /// Its flags, set at bake time (always visible, never an occluder).
+    pub fn flags(&self) -> ObjectFlags {
+        self.flags
+    }
+}
+
+/// One object's row.
+#[derive(Clone, Copy, Debug)]
+struct Row {
+    /// Where its name ends in [`ObjectTable::text`] (it starts where the
+    /// row before ends).
+    name_end: u32,
+    /// Where its id ends: the name's end when the id is the name.
+    id_end: u32,
+    triangles: u32,
+    /// Min and max corners; NaN when the file gives none.
+    bounds: [f32; 6],
+    flags: ObjectFlags,
+}
+
+/// The objects of a loaded file (see the module docs).
+#[derive(Clone, Debug)]
+pub(crate) struct ObjectTable {
+    text: String,
+    rows: Vec<Row>,
+    /// The objects in the order of their ids, for [`ObjectTable::index`].
+    by_id: Vec<u32>,
+}
+
+impl ObjectTable {
+    /// The table of a file's objects. `None` when the names and ids pass
+    /// 4 GiB.
+    pub(crate) fn new(objects: &[FileObject]) -> Option<ObjectTable> {
+        let mut text = String::new();
+        let mut rows = Vec::with_capacity(objects.len());
+        for o in objects {
+            text.push_str(&o.name);
+            let name_end = u32::try_from(text.len()).ok()?;
+            if o.id != o.name {
+                text.push_str(&o.id);
+            }
+            let b = o.bounds.map_or([f32::NAN; 6], |b| {
+                [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z]
+            });
+            rows.push(Row {
+                name_end,
+                id_end: u32::try_from(text.len()).ok()?,
+                triangles: o.triangles,
+                bounds: b,
+                flags: o.flags,
+            });
+        }
+        text.shrink_to_fit();
+        let mut by_id: Vec<u32> = (0..objects.len() as u32).collect();
+        by_id.sort_unstable_by(|&a, &b| objects[a as usize].id.cmp(&objects[b as usize].id));
+        Some(ObjectTable { text, rows, by_id })
+    }
+
+    /// The number of objects.
+    pub(crate) fn len(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// Object `i`.
+    pub(crate) fn get(&self, i: usize) -> Option<ObjectInfo<'_>> {
+        (i < self.rows.len()).then(|| self.at(i))
+    }
+
+    /// Object `i`, which must be in range.
+    pub(crate) fn at(&self, i: usize) -> ObjectInfo<'_> {
+        let row = &self.rows[i];
+        let start = match i {
+            0 => 0,
+            _ => self.rows[i - 1].id_end,
+        } as usize;
+        let name = &self.text[start..row.name_end as usize];
+        let id = match row.id_end == row.name_end {
+            true => name,
+            false => &self.text[row.name_end as usize..row.id_end as usize],
+        };
+        ObjectInfo {
+            name,
+            id,
+            triangles: row.triangles,
+            bounds: self.bounds(i),
+            flags: row.flags,
+        }
+    }
+
+    /// Object `i`'s bounds (`i` in range).
+    #[inline]
+    pub(crate) fn bounds(&self, i: usize) -> Option<Aabb> {
+        let b = &self.rows[i].bounds;
+        (!b[0].is_nan()).then(|| Aabb {
+            min: Vec3::new(b[0], b[1], b[2]),
+            max: Vec3::new(b[3], b[4], b[5]),
+        })
+    }
+
+    /// Object `i`'s triangle count (`i` in range).
+    pub(crate) fn triangles(&self, i: usize) -> u32 {
+        self.rows[i].triangles
+    }
+
+    /// The object whose id is `id`.
+    pub(crate) fn index(&self, id: &str) -> Option<usize> {
+        self.by_id
+            .binary_search_by(|&o| self.at(o as usize).id.cmp(id))
+            .ok()
+            .map(|k| self.by_id[k] as usize)
+    }
+
+    /// The bytes held.
+    pub(crate) fn memory_bytes(&self) -> usize {
+        std::mem::size_of::<Self>()
+            + self.text.capacity()
+            + self.rows.capacity() * std::mem::size_of::<Row>()
+            + self.by_id.capacity() * 4
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_ids_and_bounds_come_back() {
+        let object = |name: &str, id: &str, bounds: Option<Aabb>| FileObject {
+            name: name.into(),
+            id: id.into(),
+            triangles: name.len() as u32,
+            bounds,
+            flags: ObjectFlags::NONE,
+        };
+        let b = Aabb::new(Vec3::new(-1.0, 0.0, 2.0), Vec3::new(3.0, 4.0, 5.0));
+        let objects = [
+            object("crate", "crate#1", Some(b)),
+            object("", "", None),
+            object("crate", "crate#2", None),
+            object("floor", "floor", Some(b)),
+            object("ünï", "door-17", Some(b)),
+        ];
+        let table = ObjectTable::new(&objects).unwrap();
+        assert_eq!(table.len(), 5);
+        for (i, o) in objects.iter().enumerate() {
+            let got = table.get(i).unwrap();
+            assert_eq!(
+                (
+                    got.name(),
+                    got.id(),
+                    got.triangles(),
+                    got.bounds(),
+                    got.flags()
+                ),
+                (
+                    o.name.as_str(),
+                    o.id.as_str(),
+                    o.triangles,
+                    o.bounds,
+                    o.flags
+                )
+            );
+            assert_eq!(table.index(&o.id), Some(i));
+        }
+        assert_eq!(table.get(5), None);
+        assert_eq!(table.index("crate"), None);
+        // The ids equal to names are not stored twice.
+        assert_eq!(
+            table.text.len(),
+            "cratecrate#1cratecrate#2floorünïdoor-17".len()
+        );
+    }
+}
