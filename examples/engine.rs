@@ -17,7 +17,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use glam::{DVec3, Vec3};
-use vis5d::query::{Answer, Pvs, View};
+use vis5d::{Answer, Pvs, View};
 
 fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);

@@ -37,7 +37,7 @@
 //! ```
 //! # #[cfg(feature = "builder")] {
 //! use glam::Vec3;
-//! use vis5d::query::{Pvs, View};
+//! use vis5d::{Pvs, View};
 //!
 //! # // Make a small .v5d file for the example (engines load theirs).
 //! # let scene = vis5d::scene::procedural::generate(vis5d::scene::procedural::SceneKind::Apartment, 1, 1);
@@ -55,7 +55,7 @@
 //!     // No allocation; an error only for a set not made by new_set.
 //!     let answer = pvs.query_view(&view, &mut visible)?;
 //!     // Answer::Everything: the eye is outside the baked view box.
-//!     assert_eq!(answer, vis5d::query::Answer::Tree);
+//!     assert_eq!(answer, vis5d::Answer::Tree);
 //!     for object in visible.iter() {
 //!         let _name = pvs.object(object).map(|o| o.name()); // draw(object)
 //!     }
@@ -127,6 +127,12 @@
     doc = "\n\n[`oracle::GpuRasteriser`]: crate#features"
 )]
 #![warn(missing_docs)]
+
+/// What an engine needs, at the root: load a file ([`Pvs`]), make the
+/// answer sets once ([`ObjectSet`], [`Delta`]), ask per camera ([`View`],
+/// [`Answer`]), read objects ([`ObjectInfo`]).
+pub use bitset::ObjectSet;
+pub use query::{Answer, Delta, ObjectInfo, Pvs, PvsError, View};
 
 pub mod atomic_write;
 pub mod bitset;

@@ -44,6 +44,7 @@ pub fn params_say_conservative(params: &str) -> bool {
 /// Why a `.v5d` file cannot be read. Messages say what is wrong; the
 /// caller adds the file's name.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum CodecError {
     /// The magic bytes are missing: this is some other kind of file.
     #[error("not a .v5d file (it does not start with the .v5d magic bytes)")]

@@ -171,7 +171,7 @@ impl Deposit for Bmi2 {
     #[inline(always)]
     fn deposit(bits: u64, mask: u64) -> u64 {
         // SAFETY: `Bmi2` is used only by `walk_bmi2`, called only when
-        // `is_x86_feature_detected!("bmi2")` said the CPU has it.
+        // `is_x86_feature_detected!` said the CPU has BMI2 and POPCNT.
         unsafe { std::arch::x86_64::_pdep_u64(bits, mask) }
     }
 }
@@ -416,7 +416,7 @@ impl CodedTree {
             deepest
         };
         #[cfg(target_arch = "x86_64")]
-        let bmi2 = std::is_x86_feature_detected!("bmi2");
+        let bmi2 = std::is_x86_feature_detected!("bmi2") && std::is_x86_feature_detected!("popcnt");
         #[cfg(not(target_arch = "x86_64"))]
         let bmi2 = false;
         Ok(CodedTree {
@@ -480,7 +480,7 @@ impl CodedTree {
         scratch.stack.reserve(self.depth + 2);
         #[cfg(target_arch = "x86_64")]
         if self.bmi2 {
-            // SAFETY: the CPU has BMI2 (`CodedTree::new` asked).
+            // SAFETY: the CPU has BMI2 and POPCNT (`CodedTree::new` asked).
             unsafe { self.walk_bmi2(range, &mut scratch, visitor) };
             SCRATCH.set(scratch);
             return;

@@ -21,6 +21,7 @@ use crate::slices::{SliceIndex, TreeSlices};
 
 /// One visible object's triangles to draw.
 #[derive(Clone, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub struct ObjectTriangles {
     /// The object (its index in the scene and in every set).
     pub object: u32,

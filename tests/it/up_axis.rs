@@ -106,11 +106,9 @@ fn a_scene_turned_and_built_with_its_up_axis_gives_the_same_tree_and_answers() {
         view.radius = if k % 3 == 0 { 0.25 } else { 0.0 };
         let mut answers = Vec::new();
         for (axis, _, _, _, pvs) in &trees {
-            let turned = View {
-                dir: turn(*axis, view.dir.as_dvec3()).as_vec3(),
-                up: turn(*axis, view.up.as_dvec3()).as_vec3(),
-                ..view
-            };
+            let mut turned = view;
+            turned.dir = turn(*axis, view.dir.as_dvec3()).as_vec3();
+            turned.up = turn(*axis, view.up.as_dvec3()).as_vec3();
             let mut set = pvs.new_set();
             pvs.query_view_world(turn(*axis, eye), &turned, &mut set)
                 .unwrap();
@@ -119,10 +117,8 @@ fn a_scene_turned_and_built_with_its_up_axis_gives_the_same_tree_and_answers() {
         assert_eq!(answers[1], answers[0], "view {k} (--up y)");
         assert_eq!(answers[2], answers[0], "view {k} (--up x)");
         // The view's up matters here (not a square field of view).
-        let rolled = View {
-            up: forward.normalize().any_orthonormal_vector(),
-            ..view
-        };
+        let mut rolled = view;
+        rolled.up = forward.normalize().any_orthonormal_vector();
         differing += usize::from(pvs_answer(&trees[0].4, eye, &rolled) != answers[0]);
     }
     assert!(differing > 0, "the up vector never changed an answer");
@@ -162,10 +158,8 @@ fn a_scene_turned_and_built_with_its_up_axis_gives_the_same_tree_and_answers() {
     let expected = names(pvs_answer(y_pvs, DVec3::new(1.0, 1.2, 1.5), &look));
     assert_eq!(lists[0], expected);
     assert_eq!(lists[1], expected);
-    let square = View {
-        up: Vec3::Y,
-        ..View::square(Vec3::ZERO, Vec3::X, 60.0)
-    };
+    let mut square = View::square(Vec3::ZERO, Vec3::X, 60.0);
+    square.up = Vec3::Y;
     assert_eq!(
         lists[2],
         names(pvs_answer(y_pvs, DVec3::new(2.0, 1.0, 4.0), &square))

@@ -438,14 +438,9 @@ fn culling_keeps_what_a_renderers_edge_pixels_reach() {
             (1.0, 169.0),
             (0.01, 0.01),
         ] {
-            let view = View {
-                position: eye,
-                radius: 0.0,
-                dir,
-                up,
-                fov_x: fx.to_radians(),
-                fov_y: fy.to_radians(),
-            };
+            let mut view = View::square(eye, dir, fx);
+            view.up = up;
+            view.fov_y = fy.to_radians();
             let frustum = Frustum::new(&view, &Aabb::new(eye, eye));
             let Some(camera) = Camera::new(&view, 3840, 2160) else {
                 continue;
@@ -591,11 +586,9 @@ fn deltas_and_prefetch_answer_as_the_set_differences() {
             1.0,
             1.6,
         );
-        let b = View {
-            position: a.position + uniform_direction(&mut rng) * 0.3,
-            dir: a.dir + uniform_direction(&mut rng) * 0.2,
-            ..a
-        };
+        let mut b = a;
+        b.position = a.position + uniform_direction(&mut rng) * 0.3;
+        b.dir = a.dir + uniform_direction(&mut rng) * 0.2;
         pvs.query_view(&a, &mut from).unwrap();
         pvs.query_view(&b, &mut to).unwrap();
         pvs.delta(&from, &to, &mut delta).unwrap();
