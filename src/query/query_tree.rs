@@ -470,7 +470,9 @@ impl CodedTree {
     /// Walks the nodes the range meets with this thread's scratch, the
     /// deposit the CPU has, and the set size fixed where it is small.
     fn walk<V: Visitor>(&self, range: &Cell, visitor: &mut V) {
-        let mut scratch = SCRATCH.take();
+        // Outside a thread's lifetime (a query from another thread-local's
+        // destructor) the scratch is made for this walk alone.
+        let mut scratch = SCRATCH.try_with(StdCell::take).unwrap_or_default();
         let need = 2 * self.words * (self.depth + 1);
         if scratch.sets.len() < need {
             scratch.sets.resize(need, 0);
@@ -482,11 +484,11 @@ impl CodedTree {
         if self.bmi2 {
             // SAFETY: the CPU has BMI2 and POPCNT (`CodedTree::new` asked).
             unsafe { self.walk_bmi2(range, &mut scratch, visitor) };
-            SCRATCH.set(scratch);
+            let _ = SCRATCH.try_with(|s| s.set(scratch));
             return;
         }
         self.walk_sized::<Soft, V>(range, &mut scratch, visitor);
-        SCRATCH.set(scratch);
+        let _ = SCRATCH.try_with(|s| s.set(scratch));
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -633,7 +635,7 @@ impl CodedTree {
         }
         let mut scratch = Scratch::default();
         if out.is_some() {
-            scratch = SCRATCH.take();
+            scratch = SCRATCH.try_with(StdCell::take).unwrap_or_default();
             if scratch.sets.len() < 2 * words {
                 scratch.sets.resize(2 * words, 0);
             }
@@ -672,7 +674,7 @@ impl CodedTree {
             }
         }
         if out.is_some() {
-            SCRATCH.set(scratch);
+            let _ = SCRATCH.try_with(|s| s.set(scratch));
         }
         rank
     }
