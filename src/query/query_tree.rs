@@ -12,7 +12,8 @@
 //! A missing from L is in H, since A = B u C). Whatever the file's coding,
 //! the tree is coded this way in memory.
 //!
-//! A query descends from the root with the sets of the nodes on its path
+//! A query descends from the root (a recursion, at most
+//! [`crate::tree::MAX_DEPTH`] deep) with the sets of the nodes on its path
 //! decoded into scratch words: the lighter child by depositing its bits at
 //! the parent's objects (`pdep`: one instruction per 64 objects where the
 //! CPU has BMI2, a loop over the objects elsewhere), the heavier one from
@@ -22,7 +23,12 @@
 //! scratch, two sets per level, is per thread: the first query on a thread
 //! allocates it, none after (`tests/no_alloc.rs`).
 //!
-//! A leaf's preorder rank (the index of its record and of its slices) is
+//! Every walk passes through the top of the tree: there the children's
+//! sets are kept decoded, for the top levels (up to [`CACHE_LEVELS`]) whose
+//! sets take at most a quarter of the codes' size (the apartment: 6 levels,
+//! 3 KB beside 19 KB of codes; a quarter of the nodes a view visits).
+//!
+//! A leaf's preorder rank (the index of its slices) is
 //! counted on the way down: going above at internal node k skips the
 //! leaves of its below subtree, `end_below[k] - k` of them (a full binary
 //! subtree has one leaf more than it has internal nodes).
@@ -41,6 +47,11 @@ const BELOW_LEAF: u32 = 1 << 3;
 const ABOVE_LEAF: u32 = 1 << 4;
 /// The above child is the lighter one (its code comes first).
 const ABOVE_LIGHTER: u32 = 1 << 5;
+/// The children's sets are kept decoded: [`Inner::offset`] is where, in
+/// words of [`CodedTree::cache`] (the lighter child's, then the heavier's).
+const CACHED: u32 = 1 << 6;
+/// The most top levels whose children's sets are kept decoded.
+const CACHE_LEVELS: usize = 6;
 /// The split code's shift in [`Inner::split`] (codes have at most
 /// [`crate::tree::MAX_GRID_BITS`] = 16 bits).
 const CODE_SHIFT: u32 = 16;
@@ -53,7 +64,9 @@ struct Inner {
     /// The index of the first internal node after the below subtree: the
     /// above child's index when that is internal.
     end_below: u32,
-    /// The bit offset of the children's codes in [`CodedTree::code`].
+    /// The bit offset of the children's codes in [`CodedTree::code`], or
+    /// with [`CACHED`] the word offset of their sets in
+    /// [`CodedTree::cache`].
     offset: u32,
 }
 
@@ -87,6 +100,10 @@ pub(crate) struct CodedTree {
     /// The children's codes, least significant bit first, and one more
     /// word of zeros (reads may look one word ahead).
     code: Vec<u64>,
+    /// The children's sets of the top levels' nodes, decoded: every walk
+    /// passes there (a quarter of the nodes a view visits on the
+    /// apartment), for a few sets.
+    cache: Vec<u64>,
     /// The most internal nodes on a path from the root.
     depth: usize,
     /// Whether the CPU deposits bits in one instruction (BMI2).
@@ -139,9 +156,18 @@ impl Visitor for Leaves<'_> {
     }
 }
 
-/// Puts bits at the set bits of a mask, in order (`pdep`).
-trait Deposit {
+/// Puts bits at the set bits of a mask, in order (`pdep`), and walks on
+/// with the same instruction.
+trait Deposit: Sized {
     fn deposit(bits: u64, mask: u64) -> u64;
+
+    /// Walks the subtree of internal node `at` ([`CodedTree::visit`]).
+    fn recurse<V: Visitor, const N: usize>(
+        tree: &CodedTree,
+        walk: &mut Walk<'_, V>,
+        at: At<'_>,
+        scratch: &mut [u64],
+    );
 }
 
 /// A loop over the mask's bits: any CPU.
@@ -159,6 +185,15 @@ impl Deposit for Soft {
         }
         out
     }
+
+    fn recurse<V: Visitor, const N: usize>(
+        tree: &CodedTree,
+        walk: &mut Walk<'_, V>,
+        at: At<'_>,
+        scratch: &mut [u64],
+    ) {
+        tree.visit::<Soft, V, N>(walk, at, scratch);
+    }
 }
 
 /// The BMI2 instruction; only used once the CPU is known to have it
@@ -170,9 +205,20 @@ struct Bmi2;
 impl Deposit for Bmi2 {
     #[inline(always)]
     fn deposit(bits: u64, mask: u64) -> u64 {
-        // SAFETY: `Bmi2` is used only by `walk_bmi2`, called only when
-        // `is_x86_feature_detected!` said the CPU has BMI2 and POPCNT.
+        // SAFETY: `Bmi2` is used only below `CodedTree::visit_bmi2`, reached
+        // only when `is_x86_feature_detected!` said the CPU has BMI2 and
+        // POPCNT.
         unsafe { std::arch::x86_64::_pdep_u64(bits, mask) }
+    }
+
+    fn recurse<V: Visitor, const N: usize>(
+        tree: &CodedTree,
+        walk: &mut Walk<'_, V>,
+        at: At<'_>,
+        scratch: &mut [u64],
+    ) {
+        // SAFETY: as for `deposit`: the CPU has BMI2 and POPCNT.
+        unsafe { tree.visit_bmi2::<V, N>(walk, at, scratch) };
     }
 }
 
@@ -269,30 +315,28 @@ fn covers(range: &Cell, cell: &Cell) -> bool {
     covered_dims(range, cell) == ALL_DIMS
 }
 
-/// A node waiting in a walk: the internal node, its cell, where its set is
-/// in the scratch, its non-empty words, the rank of its first leaf.
-#[derive(Clone, Copy)]
-struct Pending {
+/// A walk's range and what it does with the sets it meets.
+struct Walk<'a, V> {
+    range: &'a Cell,
+    visitor: &'a mut V,
+}
+
+/// An internal node as a walk reaches it: its index, cell and set (zero
+/// outside `span`), its level (its children's sets go to that level's
+/// scratch), the preorder rank of its first leaf, [`covered_dims`] of its
+/// cell.
+struct At<'a> {
     inner: u32,
     cell: Cell,
-    slot: u32,
-    lo: u32,
-    hi: u32,
+    set: &'a [u64],
+    span: std::ops::Range<usize>,
     rank: u32,
-    /// [`covered_dims`] of the cell.
     covered: u8,
 }
 
-/// A thread's scratch: the sets on a walk's path, the nodes waiting.
-#[derive(Default)]
-struct Scratch {
-    sets: Vec<u64>,
-    stack: Vec<Pending>,
-}
-
 thread_local! {
-    /// Each thread's scratch.
-    static SCRATCH: StdCell<Scratch> = StdCell::new(Scratch::default());
+    /// Each thread's scratch for the sets on a walk's path.
+    static SCRATCH: StdCell<Vec<u64>> = const { StdCell::new(Vec::new()) };
 }
 
 /// Appends bits to a vector of words, least significant bit first.
@@ -344,7 +388,55 @@ impl CodedTree {
         objects: usize,
         nodes: &[Node],
     ) -> Result<CodedTree, CodecError> {
+        CodedTree::with_cache(root, grid_bits, objects, nodes, None)
+    }
+
+    /// As [`CodedTree::new`], with the children's sets of the internal
+    /// nodes in the top `levels` levels kept decoded; `None`: as many
+    /// levels (up to [`CACHE_LEVELS`]) as fit in a quarter of the codes'
+    /// size.
+    pub(crate) fn with_cache(
+        root: Cell,
+        grid_bits: u32,
+        objects: usize,
+        nodes: &[Node],
+        levels: Option<usize>,
+    ) -> Result<CodedTree, CodecError> {
         let words = objects.div_ceil(64);
+        // Each node's depth in internal nodes (the root's 0), and the
+        // codes' size, to choose the cached levels.
+        let mut depth_of = vec![0u8; nodes.len()];
+        let mut per_level = [0usize; CACHE_LEVELS + 1];
+        let mut code_bits = 0usize;
+        for (i, node) in nodes.iter().enumerate() {
+            let Some(s) = node.split else { continue };
+            let d = depth_of[i];
+            for child in [i + 1, s.above as usize] {
+                if let Some(c) = depth_of.get_mut(child) {
+                    *c = d.saturating_add(1);
+                }
+            }
+            per_level[usize::from(d).min(CACHE_LEVELS)] += 1;
+            let (b, c) = (nodes.get(i + 1), nodes.get(s.above as usize));
+            let lighter = b
+                .zip(c)
+                .map_or(0, |(b, c)| b.set.count().min(c.set.count()));
+            code_bits += node.set.count() + lighter;
+        }
+        let levels = levels.unwrap_or_else(|| {
+            let budget = code_bits / 8 / 4;
+            let mut cached = 0;
+            let mut k = 0;
+            while k < CACHE_LEVELS {
+                cached += per_level[k];
+                if cached * 2 * words * 8 > budget {
+                    break;
+                }
+                k += 1;
+            }
+            k
+        });
+        let mut cache = Vec::new();
         let mut before = Vec::with_capacity(nodes.len() + 1);
         let mut count = 0u32;
         for n in nodes {
@@ -374,19 +466,31 @@ impl CodedTree {
             }
             let above_lighter = c.count() < b.count();
             let (l, h) = if above_lighter { (cw, bw) } else { (bw, cw) };
-            let offset = u32::try_from(pusher.len).map_err(|_| {
-                CodecError::TooLarge("the coded sets pass 2^32 bits in memory".into())
-            })?;
-            for (&a, &l) in a.iter().zip(l) {
-                pusher.push(extract(l, a), a.count_ones());
-            }
-            for (&l, &h) in l.iter().zip(h) {
-                pusher.push(extract(h, l), l.count_ones());
-            }
+            let cached = usize::from(depth_of[i]) < levels;
+            let offset = if cached {
+                let at = cache.len();
+                cache.extend_from_slice(l);
+                cache.extend_from_slice(h);
+                u32::try_from(at).map_err(|_| {
+                    CodecError::TooLarge("the decoded top levels pass 2^32 words".into())
+                })?
+            } else {
+                let at = u32::try_from(pusher.len).map_err(|_| {
+                    CodecError::TooLarge("the coded sets pass 2^32 bits in memory".into())
+                })?;
+                for (&a, &l) in a.iter().zip(l) {
+                    pusher.push(extract(l, a), a.count_ones());
+                }
+                for (&l, &h) in l.iter().zip(h) {
+                    pusher.push(extract(h, l), l.count_ones());
+                }
+                at
+            };
             let flags = [
                 (is_leaf(i + 1), BELOW_LEAF),
                 (is_leaf(s.above as usize), ABOVE_LEAF),
                 (above_lighter, ABOVE_LIGHTER),
+                (cached, CACHED),
             ]
             .iter()
             .fold(0, |f, &(on, bit)| if on { f | bit } else { f });
@@ -402,6 +506,7 @@ impl CodedTree {
         code.push(0);
         code.shrink_to_fit();
         inner.shrink_to_fit();
+        cache.shrink_to_fit();
         let depth = {
             // Internal nodes on the longest path: a preorder walk.
             let mut deepest = 0;
@@ -428,6 +533,7 @@ impl CodedTree {
                 .map_or_else(|| vec![0; words], |n| n.set.words().to_vec()),
             inner,
             code,
+            cache,
             depth,
             bmi2,
         })
@@ -439,6 +545,7 @@ impl CodedTree {
             + self.root_set.capacity() * 8
             + self.inner.capacity() * std::mem::size_of::<Inner>()
             + self.code.capacity() * 8
+            + self.cache.capacity() * 8
     }
 
     /// Nodes, leaves included.
@@ -470,154 +577,140 @@ impl CodedTree {
     /// Walks the nodes the range meets with this thread's scratch, the
     /// deposit the CPU has, and the set size fixed where it is small.
     fn walk<V: Visitor>(&self, range: &Cell, visitor: &mut V) {
-        // Outside a thread's lifetime (a query from another thread-local's
-        // destructor) the scratch is made for this walk alone.
-        let mut scratch = SCRATCH.try_with(StdCell::take).unwrap_or_default();
-        let need = 2 * self.words * (self.depth + 1);
-        if scratch.sets.len() < need {
-            scratch.sets.resize(need, 0);
-        }
-        scratch.stack.clear();
-        // At most one waiting sibling per level, and the node at hand.
-        scratch.stack.reserve(self.depth + 2);
-        #[cfg(target_arch = "x86_64")]
-        if self.bmi2 {
-            // SAFETY: the CPU has BMI2 and POPCNT (`CodedTree::new` asked).
-            unsafe { self.walk_bmi2(range, &mut scratch, visitor) };
-            let _ = SCRATCH.try_with(|s| s.set(scratch));
-            return;
-        }
-        self.walk_sized::<Soft, V>(range, &mut scratch, visitor);
-        let _ = SCRATCH.try_with(|s| s.set(scratch));
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "bmi2,popcnt")]
-    fn walk_bmi2<V: Visitor>(&self, range: &Cell, scratch: &mut Scratch, visitor: &mut V) {
-        self.walk_sized::<Bmi2, V>(range, scratch, visitor);
-    }
-
-    /// [`CodedTree::walk_with`] with the words a set takes as a constant
-    /// up to 4 (256 objects: the loops unrolled), else as they come.
-    #[inline(always)]
-    fn walk_sized<D: Deposit, V: Visitor>(
-        &self,
-        range: &Cell,
-        scratch: &mut Scratch,
-        visitor: &mut V,
-    ) {
-        match self.words {
-            1 => self.walk_with::<D, V, 1>(range, scratch, visitor),
-            2 => self.walk_with::<D, V, 2>(range, scratch, visitor),
-            3 => self.walk_with::<D, V, 3>(range, scratch, visitor),
-            4 => self.walk_with::<D, V, 4>(range, scratch, visitor),
-            _ => self.walk_with::<D, V, 0>(range, scratch, visitor),
-        }
-    }
-
-    /// The walk: depth first, each internal node's children decoded into
-    /// the two scratch sets of the next level (a node's set stays put
-    /// until its parent's level is reached again, which in depth-first
-    /// order is after its subtree). `N`: the words of a set, or 0 for
-    /// [`CodedTree::words`], with only each set's non-empty stretch of
-    /// words touched.
-    #[inline(always)]
-    fn walk_with<D: Deposit, V: Visitor, const N: usize>(
-        &self,
-        range: &Cell,
-        scratch: &mut Scratch,
-        visitor: &mut V,
-    ) {
-        let Scratch {
-            sets: scratch,
-            stack,
-        } = scratch;
-        let words = if N > 0 { N } else { self.words };
+        let words = self.words;
         let all = tighten(&self.root_set, 0..words);
         let covered = covered_dims(range, &self.root);
         if self.inner.is_empty() || (V::WHOLE_NODES && covered == ALL_DIMS) {
             visitor.set(self.inner.is_empty().then_some(0), &self.root_set, all);
             return;
         }
-        stack.push(Pending {
+        // Outside a thread's lifetime (a query from another thread-local's
+        // destructor) the scratch is made for this walk alone.
+        let mut scratch = SCRATCH.try_with(StdCell::take).unwrap_or_default();
+        let need = 2 * words * (self.depth + 1);
+        if scratch.len() < need {
+            scratch.resize(need, 0);
+        }
+        let mut walk = Walk { range, visitor };
+        let at = At {
             inner: 0,
             cell: self.root,
-            slot: u32::MAX,
-            lo: all.start as u32,
-            hi: all.end as u32,
+            set: &self.root_set,
+            span: all,
             rank: 0,
             covered,
-        });
-        while let Some(p) = stack.pop() {
-            let n = self.inner[p.inner as usize];
-            let level = if p.slot == u32::MAX {
-                0
-            } else {
-                p.slot as usize / 2 + 1
-            };
-            let (held, next) = scratch.split_at_mut(2 * words * level);
-            let a: &[u64] = if p.slot == u32::MAX {
-                &self.root_set[..words]
-            } else {
-                let at = p.slot as usize * words;
-                &held[at..at + words]
-            };
-            let (l, h) = next[..2 * words].split_at_mut(words);
-            let d = n.dim();
-            let value = self.value(n, &p.cell);
-            let go_below = range.lo[d] < value;
-            let go_above = range.hi[d] >= value;
-            let above_lighter = n.has(ABOVE_LIGHTER);
-            let span = if N > 0 {
-                0..N
-            } else {
-                p.lo as usize..p.hi as usize
-            };
-            let pos = lighter::<D>(&self.code, n.offset as usize, a, l, span.clone());
+        };
+        #[cfg(target_arch = "x86_64")]
+        if self.bmi2 {
+            self.enter::<Bmi2, V>(&mut walk, at, &mut scratch);
+            let _ = SCRATCH.try_with(|s| s.set(scratch));
+            return;
+        }
+        self.enter::<Soft, V>(&mut walk, at, &mut scratch);
+        let _ = SCRATCH.try_with(|s| s.set(scratch));
+    }
+
+    /// The walk from the root, with the words a set takes as a constant up
+    /// to 4 (256 objects: the loops unrolled), else as they come.
+    fn enter<D: Deposit, V: Visitor>(
+        &self,
+        walk: &mut Walk<'_, V>,
+        at: At<'_>,
+        scratch: &mut [u64],
+    ) {
+        match self.words {
+            1 => D::recurse::<V, 1>(self, walk, at, scratch),
+            2 => D::recurse::<V, 2>(self, walk, at, scratch),
+            3 => D::recurse::<V, 3>(self, walk, at, scratch),
+            4 => D::recurse::<V, 4>(self, walk, at, scratch),
+            _ => D::recurse::<V, 0>(self, walk, at, scratch),
+        }
+    }
+
+    /// [`CodedTree::visit`] with BMI2's deposit.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "bmi2,popcnt")]
+    fn visit_bmi2<V: Visitor, const N: usize>(
+        &self,
+        walk: &mut Walk<'_, V>,
+        at: At<'_>,
+        scratch: &mut [u64],
+    ) {
+        self.visit::<Bmi2, V, N>(walk, at, scratch);
+    }
+
+    /// Walks the subtree of an internal node the range meets (and does not
+    /// hold whole): its children's sets decoded into the first two sets of
+    /// `scratch` (or read from the decoded top levels), then each child
+    /// the range meets given to the visitor (a leaf, or a node the range
+    /// holds) or walked, with the rest of `scratch`. `N`: the words of a
+    /// set, or 0 for [`CodedTree::words`], with only each set's non-empty
+    /// stretch of words touched.
+    #[inline(always)]
+    fn visit<D: Deposit, V: Visitor, const N: usize>(
+        &self,
+        walk: &mut Walk<'_, V>,
+        at: At<'_>,
+        scratch: &mut [u64],
+    ) {
+        let words = if N > 0 { N } else { self.words };
+        let n = self.inner[at.inner as usize];
+        let d = n.dim();
+        let value = self.value(n, &at.cell);
+        let range = walk.range;
+        let go_below = range.lo[d] < value;
+        let go_above = range.hi[d] >= value;
+        let above_lighter = n.has(ABOVE_LIGHTER);
+        let span = if N > 0 { 0..N } else { at.span.clone() };
+        let (mine, rest) = scratch.split_at_mut(2 * words);
+        let (l, h): (&[u64], &[u64]) = if n.has(CACHED) {
+            let o = n.offset as usize;
+            self.cache[o..o + 2 * words].split_at(words)
+        } else {
+            let (l, h) = mine.split_at_mut(words);
+            let pos = lighter::<D>(&self.code, n.offset as usize, at.set, l, span.clone());
             if if above_lighter { go_below } else { go_above } {
                 // The heavier child is walked.
-                heavier::<D>(&self.code, pos, a, l, h, span.clone());
+                heavier::<D>(&self.code, pos, at.set, l, h, span.clone());
             }
-            // The above child first onto the stack, so that the below one is
-            // walked first.
-            for above in [true, false] {
-                if !(if above { go_above } else { go_below }) {
-                    continue;
-                }
-                let mut cell = p.cell;
-                if above {
-                    cell.lo[d] = value;
-                } else {
-                    cell.hi[d] = value;
-                }
-                let heavy = above != above_lighter;
-                let set: &[u64] = if heavy { h } else { l };
-                let span = if N > 0 {
-                    span.clone()
-                } else {
-                    tighten(set, span.clone())
+            (l, h)
+        };
+        for above in [false, true] {
+            if !(if above { go_above } else { go_below }) {
+                continue;
+            }
+            let mut cell = at.cell;
+            if above {
+                cell.lo[d] = value;
+            } else {
+                cell.hi[d] = value;
+            }
+            let set = if above != above_lighter { h } else { l };
+            let span = if N > 0 {
+                span.clone()
+            } else {
+                tighten(set, span.clone())
+            };
+            let leaf = n.has(if above { ABOVE_LEAF } else { BELOW_LEAF });
+            let rank = if above {
+                at.rank + (n.end_below - at.inner)
+            } else {
+                at.rank
+            };
+            let held = range.lo[d] <= cell.lo[d] && range.hi[d] >= cell.hi[d];
+            let covered = (at.covered & !(1 << d)) | (u8::from(held) << d);
+            if leaf || (V::WHOLE_NODES && covered == ALL_DIMS) {
+                walk.visitor.set(leaf.then_some(rank), set, span);
+            } else {
+                let child = At {
+                    inner: if above { n.end_below } else { at.inner + 1 },
+                    cell,
+                    set,
+                    span,
+                    rank,
+                    covered,
                 };
-                let leaf = n.has(if above { ABOVE_LEAF } else { BELOW_LEAF });
-                let rank = if above {
-                    p.rank + (n.end_below - p.inner)
-                } else {
-                    p.rank
-                };
-                let held = range.lo[d] <= cell.lo[d] && range.hi[d] >= cell.hi[d];
-                let covered = (p.covered & !(1 << d)) | (u8::from(held) << d);
-                if leaf || (V::WHOLE_NODES && covered == ALL_DIMS) {
-                    visitor.set(leaf.then_some(rank), set, span);
-                } else {
-                    stack.push(Pending {
-                        inner: if above { n.end_below } else { p.inner + 1 },
-                        cell,
-                        slot: (2 * level + usize::from(heavy)) as u32,
-                        lo: span.start as u32,
-                        hi: span.end as u32,
-                        rank,
-                        covered,
-                    });
-                }
+                D::recurse::<V, N>(self, walk, child, rest);
             }
         }
     }
@@ -633,11 +726,11 @@ impl CodedTree {
         if self.inner.is_empty() {
             return 0;
         }
-        let mut scratch = Scratch::default();
+        let mut scratch = Vec::new();
         if out.is_some() {
             scratch = SCRATCH.try_with(StdCell::take).unwrap_or_default();
-            if scratch.sets.len() < 2 * words {
-                scratch.sets.resize(2 * words, 0);
+            if scratch.len() < 2 * words {
+                scratch.resize(2 * words, 0);
             }
         }
         let (mut k, mut cell, mut rank) = (0u32, self.root, 0u32);
@@ -646,9 +739,15 @@ impl CodedTree {
             let d = n.dim();
             let value = self.value(n, &cell);
             let above = p[d] >= value;
-            if let Some(out) = out.as_deref_mut() {
+            if let Some(out) = out.as_deref_mut()
+                && n.has(CACHED)
+            {
+                let lighter_taken = above == n.has(ABOVE_LIGHTER);
+                let at = n.offset as usize + if lighter_taken { 0 } else { words };
+                out.copy_from_slice(&self.cache[at..at + words]);
+            } else if let Some(out) = out.as_deref_mut() {
                 // `out` holds the node's set: the child taken replaces it.
-                let (l, h) = scratch.sets[..2 * words].split_at_mut(words);
+                let (l, h) = scratch[..2 * words].split_at_mut(words);
                 let pos = lighter::<Soft>(&self.code, n.offset as usize, out, l, 0..words);
                 if above == n.has(ABOVE_LIGHTER) {
                     out.copy_from_slice(l);
@@ -786,7 +885,12 @@ mod tests {
             let mut nodes = Vec::new();
             let depth = rng.random_range(0..9);
             random_tree(&mut rng, objects, depth, &mut nodes);
-            let mut tree = CodedTree::new(root, 10, objects, &nodes).unwrap();
+            // No level, some, every level decoded, and the default.
+            let levels = [Some(0), Some(2), Some(64), None][trial % 4];
+            let mut tree = CodedTree::with_cache(root, 10, objects, &nodes, levels).unwrap();
+            if levels == Some(64) {
+                assert_eq!(tree.code, [0], "trial {trial}: nothing left coded");
+            }
             let leaves: Vec<usize> = (0..nodes.len())
                 .filter(|&i| nodes[i].split.is_none())
                 .collect();
