@@ -411,6 +411,12 @@ impl Frustum {
             // The box of no triangles: nothing to see.
             return false;
         }
+        self.reaches(b)
+    }
+
+    /// [`Frustum::may_see`] for a box known not to be empty (every box of
+    /// a file's object table: an object without triangles has none).
+    fn reaches(&self, b: &Aabb) -> bool {
         self.planes[..self.count]
             .iter()
             .zip(&self.eyes)
@@ -1000,7 +1006,7 @@ impl Pvs {
                 let o = w * 64 + b;
                 if o < self.objects.len()
                     && let Some(bounds) = self.objects.bounds(o)
-                    && !frustum.may_see(&bounds)
+                    && !frustum.reaches(&bounds)
                 {
                     *word &= !(1u64 << b);
                 }

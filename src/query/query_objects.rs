@@ -39,7 +39,7 @@ impl<'a> ObjectInfo<'a> {
 
     /// Its bounding box in the tree's local coordinates, quantised
     /// outwards (it holds the object); `None` when the file does not say
-    /// (version 1).
+    /// (version 1) or the object has no triangles.
     pub fn bounds(&self) -> Option<Aabb> {
         self.bounds
     }
@@ -85,9 +85,14 @@ impl ObjectTable {
             if o.id != o.name {
                 text.push_str(&o.id);
             }
-            let b = o.bounds.map_or([f32::NAN; 6], |b| {
-                [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z]
-            });
+            // An empty box (no triangles) is kept as none: queries never
+            // cull by it.
+            let b = o
+                .bounds
+                .filter(|b| !b.is_empty())
+                .map_or([f32::NAN; 6], |b| {
+                    [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z]
+                });
             rows.push(Row {
                 name_end,
                 id_end: u32::try_from(text.len()).ok()?,

@@ -322,9 +322,8 @@ struct Walk<'a, V> {
 }
 
 /// An internal node as a walk reaches it: its index, cell and set (zero
-/// outside `span`), its level (its children's sets go to that level's
-/// scratch), the preorder rank of its first leaf, [`covered_dims`] of its
-/// cell.
+/// outside `span`), the preorder rank of its first leaf, [`covered_dims`]
+/// of its cell.
 struct At<'a> {
     inner: u32,
     cell: Cell,
