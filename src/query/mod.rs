@@ -13,8 +13,8 @@
 //!
 //! The loaded tree keeps its sets coded, as the file's third coding codes
 //! them, and a query decodes the sets on its way down (`query_tree`): the
-//! loaded file takes 1.4 to 1.7 times its size in memory
-//! ([`Pvs::memory_bytes`]).
+//! loaded file takes 1.15 to 1.8 times its size in memory on the scenes
+//! measured ([`Pvs::memory_bytes`], notes/query.md).
 //!
 //! Queries allocate nothing: the answer goes into an [`ObjectSet`] made once
 //! with [`Pvs::new_set`], and the sets on the walk's path into scratch that
@@ -607,8 +607,8 @@ fn cone_angles(f: DVec3, half: f64) -> AngularRanges {
 ///   writes into, reused every frame;
 /// - [`Pvs::query_view_world`] (or [`Pvs::query_view`] with positions in
 ///   the tree's frame) for each camera ([`View::look`] or
-///   [`View::from_view_projection`]): no allocation, well under a
-///   microsecond (notes/query.md);
+///   [`View::from_view_projection`]): no allocation, a microsecond or two
+///   (notes/query.md);
 /// - [`Pvs::delta`]: the objects entering and leaving since last frame;
 ///   [`Pvs::query_positions_world`]: what to stream in for a region;
 /// - [`Pvs::object`]: an object's id, name, triangle count and flags.
@@ -618,8 +618,9 @@ fn cone_angles(f: DVec3, half: f64) -> AngularRanges {
 /// queries over angles, raw-word answers (the C API), slices' triangle
 /// ranges, the file's parameters, coding and size.
 ///
-/// Memory: the sets stay coded (`query_tree`), about 1.4 to 1.7 times
-/// the file's size in all ([`Pvs::memory_bytes`]); each thread that
+/// Memory: the sets stay coded (`query_tree`), 1.15 to 1.8 times the
+/// file's size in all on the scenes measured ([`Pvs::memory_bytes`],
+/// notes/query.md); each thread that
 /// queries keeps scratch for the sets on one path of the tree, made by
 /// its first query.
 #[derive(Clone, Debug)]
@@ -632,7 +633,6 @@ pub struct Pvs {
     root: Cell,
     /// The splits and the coded sets (`query_tree`).
     tree: CodedTree,
-    words: usize,
     /// The leaves' hidden slices, when the file has them (version 4).
     slices: Option<TreeSlices>,
     /// Every object's bit: the answer outside the view box.
@@ -671,7 +671,6 @@ impl Pvs {
         let n_objects = tree.object_count();
         let objects = ObjectTable::new(&file.objects)
             .ok_or_else(|| CodecError::TooLarge("the names and ids pass 4 GiB".into()))?;
-        let words = n_objects.div_ceil(64);
         // The leaf records stay in the file: they tell how sure a leaf's
         // set is (`vis5d stat`, `VisTree::leaf_records`), which no query
         // needs.
@@ -695,7 +694,6 @@ impl Pvs {
             objects,
             root,
             tree: coded,
-            words,
             slices,
             all,
         })
@@ -915,17 +913,17 @@ impl Pvs {
 
     /// The number of 64-bit words of an answer's bitset.
     pub fn answer_words(&self) -> usize {
-        self.words
+        self.tree.words()
     }
 
     /// `Ok` when `out` has the words of an answer.
     fn check_words(&self, out: &[u64]) -> Result<(), SetSizeError> {
-        if out.len() == self.words {
+        if out.len() == self.tree.words() {
             Ok(())
         } else {
             Err(SetSizeError {
                 got: out.len() * 64,
-                expected: self.words * 64,
+                expected: self.tree.words() * 64,
             })
         }
     }

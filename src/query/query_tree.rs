@@ -402,14 +402,22 @@ impl CodedTree {
         levels: Option<usize>,
     ) -> Result<CodedTree, CodecError> {
         let words = objects.div_ceil(64);
-        // Each node's depth in internal nodes (the root's 0), and the
-        // codes' size, to choose the cached levels.
+        // Each node's depth in internal nodes (the root's 0), the most
+        // internal nodes on a path, the internal nodes before each node (the
+        // internal index of an above child), and the codes' size, to choose
+        // the cached levels.
         let mut depth_of = vec![0u8; nodes.len()];
+        let mut depth = 0;
+        let mut before = Vec::with_capacity(nodes.len() + 1);
+        let mut count = 0u32;
         let mut per_level = [0usize; CACHE_LEVELS + 1];
         let mut code_bits = 0usize;
         for (i, node) in nodes.iter().enumerate() {
+            before.push(count);
             let Some(s) = node.split else { continue };
+            count += 1;
             let d = depth_of[i];
+            depth = depth.max(usize::from(d) + 1);
             for child in [i + 1, s.above as usize] {
                 if let Some(c) = depth_of.get_mut(child) {
                     *c = d.saturating_add(1);
@@ -435,14 +443,8 @@ impl CodedTree {
             }
             k
         });
-        let mut cache = Vec::new();
-        let mut before = Vec::with_capacity(nodes.len() + 1);
-        let mut count = 0u32;
-        for n in nodes {
-            before.push(count);
-            count += u32::from(n.split.is_some());
-        }
         before.push(count);
+        let mut cache = Vec::new();
         let mut inner = Vec::with_capacity(count as usize);
         let mut pusher = BitPusher {
             words: Vec::new(),
@@ -506,19 +508,6 @@ impl CodedTree {
         code.shrink_to_fit();
         inner.shrink_to_fit();
         cache.shrink_to_fit();
-        let depth = {
-            // Internal nodes on the longest path: a preorder walk.
-            let mut deepest = 0;
-            let mut stack = vec![(0usize, 0usize)];
-            while let Some((i, d)) = stack.pop() {
-                if let Some(s) = nodes.get(i).and_then(|n| n.split) {
-                    deepest = deepest.max(d + 1);
-                    stack.push((i + 1, d + 1));
-                    stack.push((s.above as usize, d + 1));
-                }
-            }
-            deepest
-        };
         #[cfg(target_arch = "x86_64")]
         let bmi2 = std::is_x86_feature_detected!("bmi2") && std::is_x86_feature_detected!("popcnt");
         #[cfg(not(target_arch = "x86_64"))]
@@ -545,6 +534,11 @@ impl CodedTree {
             + self.inner.capacity() * std::mem::size_of::<Inner>()
             + self.code.capacity() * 8
             + self.cache.capacity() * 8
+    }
+
+    /// The words of a set.
+    pub(crate) fn words(&self) -> usize {
+        self.words
     }
 
     /// Nodes, leaves included.

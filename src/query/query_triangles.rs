@@ -119,7 +119,7 @@ impl Pvs {
             }
         }
         // The leaves met, each once, with their sets.
-        let words = self.words;
+        let words = self.tree.words();
         let mut leaves: Vec<(u32, &[u64])> = ranks
             .iter()
             .enumerate()
