@@ -334,3 +334,64 @@ fn flags_from_gltf_extras_are_honoured_and_a_sidecar_adds_to_them() {
     std::fs::write(&sidecar, r#"{"sky": ["always_visible"]}"#).unwrap();
     assert_eq!(build(&["--flags", &s(&sidecar)]), flags_of_gallery());
 }
+
+/// An attack on both oracles with flags no test was tuned to: on the
+/// committed office and city, a random fifth of the objects never occlude
+/// and a random twentieth are always visible, and from the property
+/// test's cells (random, tiny, a point, huge, outside the scene, on and
+/// touching surfaces) 20,000 random rays each must see nothing an oracle
+/// calls hidden, what a ray sees being the first occluder it hits and
+/// every object that never occludes before it ([`Tracer::seen_along`]).
+#[test]
+fn random_flags_never_make_an_oracle_hide_what_rays_see() {
+    use rand::RngExt;
+    for (name, seed) in [("office.obj", 21u64), ("city.obj", 22)] {
+        let plain = vis5d::scene::load(crate::committed(name)).expect("committed scene loads");
+        let mut rng = Pcg64::seed_from_u64(seed);
+        let flags: Vec<ObjectFlags> = (0..plain.objects().len())
+            .map(|_| {
+                let mut f = ObjectFlags::NONE;
+                if rng.random_bool(0.2) {
+                    f = f.union(ObjectFlags::NEVER_OCCLUDER);
+                }
+                if rng.random_bool(0.05) {
+                    f = f.union(ObjectFlags::ALWAYS_VISIBLE);
+                }
+                f
+            })
+            .collect();
+        let scene = plain.with_flags(&flags);
+        let tracer = Tracer::new(&scene);
+        let extended = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+        let shrink = ShrinkOracle::new(&scene, ShrinkParams::default()).unwrap();
+        let mut along = Vec::new();
+        let mut seen = 0;
+        for (label, cell) in crate::oracle::cells(&scene, &mut rng) {
+            let by_extended = extended.cell(&cell, None).visible;
+            let by_shrink = shrink.cell(&cell).visible;
+            for (o, _) in flags.iter().enumerate().filter(|(_, f)| f.always_visible()) {
+                assert!(
+                    by_extended.contains(o) && by_shrink.contains(o),
+                    "{label}: {o}"
+                );
+            }
+            for _ in 0..20_000 {
+                let ray = Ray::new(uniform_point(&mut rng, &cell), uniform_direction(&mut rng));
+                tracer.seen_along(&ray, &mut along);
+                for &o in &along {
+                    let o = o as usize;
+                    for (method, visible) in [("extended", &by_extended), ("shrink", &by_shrink)] {
+                        assert!(
+                            visible.contains(o),
+                            "{name}, cell {label} {cell:?}: {method} hid {} ({}), seen by {ray:?}",
+                            scene.objects()[o].name,
+                            flags[o]
+                        );
+                    }
+                }
+                seen += along.len();
+            }
+        }
+        assert!(seen > 0, "{name}: the rays saw nothing");
+    }
+}
