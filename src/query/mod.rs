@@ -60,6 +60,7 @@ use crate::geom::cell::{Cell, DIMS};
 use crate::geom::{Aabb, Frame};
 use crate::slices::TreeSlices;
 
+mod query_cull;
 mod query_objects;
 mod query_prefetch;
 mod query_tree;
@@ -354,36 +355,31 @@ impl Frustum {
     /// The frustum of `view` from every eye in `eyes` (in the coordinates
     /// of the boxes it will test).
     pub fn new(view: &View, eyes: &Aabb) -> Frustum {
+        Frustum::in_frame(
+            &ViewFrame::new(view.dir, view.up, view.fov_x, view.fov_y),
+            eyes,
+        )
+    }
+
+    /// [`Frustum::new`] with the view's frame made already.
+    fn in_frame(frame: &ViewFrame, eyes: &Aabb) -> Frustum {
         let none = Frustum {
             planes: [(Vec3::ZERO, 0.0); 5],
             eyes: [Vec3::ZERO; 5],
             count: 0,
         };
-        let f = view.dir.as_dvec3();
-        let len = f.length();
-        let fovs_ok = view.fov_x >= 0.0
-            && view.fov_y >= 0.0
-            && view.fov_x.max(view.fov_y) <= 170f32.to_radians();
-        if !(len > 0.0
-            && len.is_finite()
-            && fovs_ok
-            && eyes.min.is_finite()
-            && eyes.max.is_finite())
-        {
+        let fovs_ok = frame.fov_x >= 0.0
+            && frame.fov_y >= 0.0
+            && frame.fov_x.max(frame.fov_y) <= 170f32.to_radians();
+        if !(frame.dir_ok && fovs_ok && eyes.min.is_finite() && eyes.max.is_finite()) {
             return none;
         }
-        let f = f / len;
+        let f = frame.f;
         let mut normals = [f; 5];
         let mut used = 1;
-        let up = view.up.as_dvec3();
-        let r0 = f.cross(up);
-        if r0.length() > Self::MIN_UP_ANGLE.sin() * up.length() && r0.length().is_finite() {
-            let r = (r0 - f * r0.dot(f)).normalize();
-            let u = r.cross(f);
-            let (tx, ty) = (
-                (f64::from(view.fov_x) * 0.5).tan(),
-                (f64::from(view.fov_y) * 0.5).tan(),
-            );
+        let r0 = frame.r0;
+        if r0.length() > Self::MIN_UP_ANGLE.sin() * frame.up.length() && r0.length().is_finite() {
+            let (r, u, tx, ty) = (frame.r, frame.u, frame.tx, frame.ty);
             normals[1..].copy_from_slice(&[
                 (f - r * tx).cross(u),
                 u.cross(f + r * tx),
@@ -406,17 +402,13 @@ impl Frustum {
 
     /// Whether some point of the box `b` may be in the frustum: false only
     /// when all of it is outside one plane by more than the slack.
+    /// (Queries cull with a faster form of the same test that keeps every
+    /// box this keeps: `query_cull`.)
     pub fn may_see(&self, b: &Aabb) -> bool {
         if b.is_empty() {
             // The box of no triangles: nothing to see.
             return false;
         }
-        self.reaches(b)
-    }
-
-    /// [`Frustum::may_see`] for a box known not to be empty (every box of
-    /// a file's object table: an object without triangles has none).
-    fn reaches(&self, b: &Aabb) -> bool {
         self.planes[..self.count]
             .iter()
             .zip(&self.eyes)
@@ -450,24 +442,64 @@ impl Frustum {
 /// frustum nearly flat (a field of view above 170 degrees), the answer is
 /// the cone around `dir` that holds the frustum whatever its roll.
 pub fn frustum_angles(dir: Vec3, up: Vec3, fov_x: f32, fov_y: f32) -> AngularRanges {
+    frustum_angles_in(&ViewFrame::new(dir, up, fov_x, fov_y))
+}
+
+/// A view's frame in f64, made once for [`frustum_angles`] and
+/// [`Frustum::new`]: the unit forward axis `f`, `r0 = f x up`, the right
+/// and up axes `r` and `u` (meaningful only where `r0` is not too short:
+/// each user checks it), and the tangents of the half fields of view.
+struct ViewFrame {
+    /// Whether `dir` has a finite, non-zero length.
+    dir_ok: bool,
+    f: DVec3,
+    up: DVec3,
+    r0: DVec3,
+    r: DVec3,
+    u: DVec3,
+    fov_x: f32,
+    fov_y: f32,
+    tx: f64,
+    ty: f64,
+}
+
+impl ViewFrame {
+    fn new(dir: Vec3, up: Vec3, fov_x: f32, fov_y: f32) -> ViewFrame {
+        let f = dir.as_dvec3();
+        let len = f.length();
+        let f = f / len;
+        let up = up.as_dvec3();
+        let r0 = f.cross(up);
+        let r = (r0 - f * r0.dot(f)).normalize();
+        ViewFrame {
+            dir_ok: len > 0.0 && len.is_finite(),
+            f,
+            up,
+            r0,
+            r,
+            u: r.cross(f),
+            fov_x,
+            fov_y,
+            tx: (f64::from(fov_x) * 0.5).tan(),
+            ty: (f64::from(fov_y) * 0.5).tan(),
+        }
+    }
+}
+
+/// [`frustum_angles`] of a view's frame.
+fn frustum_angles_in(frame: &ViewFrame) -> AngularRanges {
     let full = AngularRanges::one((-PI, PI, 0.0, PI));
-    let f = dir.as_dvec3();
-    let len = f.length();
-    if !(len > 0.0 && len.is_finite() && fov_x >= 0.0 && fov_y >= 0.0) || fov_x >= PI || fov_y >= PI
-    {
+    let (fov_x, fov_y) = (frame.fov_x, frame.fov_y);
+    if !(frame.dir_ok && fov_x >= 0.0 && fov_y >= 0.0) || fov_x >= PI || fov_y >= PI {
         return full;
     }
-    let f = f / len;
-    let (tx, ty) = ((fov_x as f64 * 0.5).tan(), (fov_y as f64 * 0.5).tan());
-    let up = up.as_dvec3();
-    let r0 = f.cross(up);
+    let (f, tx, ty, r0) = (frame.f, frame.tx, frame.ty, frame.r0);
     let flat = fov_x.max(fov_y) as f64 > 170f64.to_radians();
-    let degenerate = r0.length() <= 1e-3 * up.length() || r0.length().is_nan();
+    let degenerate = r0.length() <= 1e-3 * frame.up.length() || r0.length().is_nan();
     if degenerate || flat {
         return cone_angles(f, tx.hypot(ty).atan());
     }
-    let r = (r0 - f * r0.dot(f)).normalize();
-    let u = r.cross(f);
+    let (r, u) = (frame.r, frame.u);
     let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
         .map(|(sx, sy)| (f + r * (sx * tx) + u * (sy * ty)).normalize());
     // A pole inside, or on the boundary to within the padding.
@@ -931,8 +963,10 @@ impl Pvs {
     /// The objects visible from `view` (its position in the tree's frame:
     /// see the module docs), written into `out` (cleared first): the
     /// tree's answer for the view's directions, culled to its frustum with
-    /// the objects' bounds ([`Frustum`]; a version 1 file has none and is
-    /// not culled). [`Answer::Everything`] (every object in the frustum)
+    /// the objects' bounds ([`Frustum`], each plane's slack taken for the
+    /// scene's farthest point from the eye, not the box's: a box outside
+    /// a plane by less than 1e-4 times that distance is kept; a version 1
+    /// file has no bounds and is not culled). [`Answer::Everything`] (every object in the frustum)
     /// from outside the view box; an error, `out` untouched, when `out` is
     /// not of the file's size.
     pub fn query_view(&self, view: &View, out: &mut ObjectSet) -> Result<Answer, SetSizeError> {
@@ -989,34 +1023,21 @@ impl Pvs {
     /// The view query into `out` (of the file's size, checked by the
     /// caller): the leaf sets met, culled to the frustum.
     fn view_into(&self, positions: &Aabb, view: &View, out: &mut [u64]) -> Answer {
-        let answer = self.query_view_unculled(positions, view, out);
-        self.cull(&Frustum::new(view, positions), out);
+        let frame = ViewFrame::new(view.dir, view.up, view.fov_x, view.fov_y);
+        let answer = self.ranges_into(positions, &frustum_angles_in(&frame), out);
+        self.cull(&Frustum::in_frame(&frame, positions), out);
         answer
     }
 
     /// Removes from `out` the objects whose bounds `frustum` cannot see.
     fn cull(&self, frustum: &Frustum, out: &mut [u64]) {
-        for (w, word) in out.iter_mut().enumerate() {
-            let mut bits = *word;
-            while bits != 0 {
-                let b = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let o = w * 64 + b;
-                if o < self.objects.len()
-                    && let Some(bounds) = self.objects.bounds(o)
-                    && !frustum.reaches(&bounds)
-                {
-                    *word &= !(1u64 << b);
-                }
-            }
-        }
+        self.objects.cull(frustum, out);
     }
 
-    /// The union of the leaf sets the view's positions and directions
-    /// meet, not culled to the frustum.
-    fn query_view_unculled(&self, positions: &Aabb, view: &View, out: &mut [u64]) -> Answer {
+    /// The union of the leaf sets the positions and the angular boxes
+    /// meet, into `out` (cleared first).
+    fn ranges_into(&self, positions: &Aabb, ranges: &AngularRanges, out: &mut [u64]) -> Answer {
         out.fill(0);
-        let ranges = frustum_angles(view.dir, view.up, view.fov_x, view.fov_y);
         let mut answer = Answer::Tree;
         for &(t0, t1, p0, p1) in ranges.boxes() {
             answer = answer.max(self.accumulate(positions, (t0, t1), (p0, p1), out));

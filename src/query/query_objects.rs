@@ -1,9 +1,12 @@
-//! The object table of a loaded file, as queries and engines read it: one
-//! 40-byte row per object and one string holding the names and the ids
-//! (an id is stored only where it is not the name, as it mostly is).
+//! The object table of a loaded file, as queries and engines read it: per
+//! object a 16-byte row and its box (24 bytes, apart, for the frustum
+//! cull to read alone), and one string holding the names and the ids (an
+//! id is stored only where it is not the name, as it mostly is).
 
 use glam::Vec3;
 
+use super::Frustum;
+use super::query_cull::{Cull, UNBOUNDED, corners, scene_box};
 use crate::codec::{FileObject, ObjectFlags};
 use crate::geom::Aabb;
 
@@ -59,9 +62,9 @@ struct Row {
     /// Where its id ends: the name's end when the id is the name.
     id_end: u32,
     triangles: u32,
-    /// Min and max corners; NaN when the file gives none.
-    bounds: [f32; 6],
     flags: ObjectFlags,
+    /// Whether its box in [`ObjectTable::boxes`] is the object's.
+    bounded: bool,
 }
 
 /// The objects of a loaded file (see the module docs).
@@ -69,6 +72,11 @@ struct Row {
 pub(crate) struct ObjectTable {
     text: String,
     rows: Vec<Row>,
+    /// Per object, its box's corners ([`Cull::keeps`]): [`UNBOUNDED`]
+    /// where the file gives none, or the object has no triangles.
+    boxes: Vec<[f32; 6]>,
+    /// The box of all the objects' boxes, when one has a box.
+    scene: Option<Aabb>,
     /// The objects in the order of their ids, for [`ObjectTable::index`].
     by_id: Vec<u32>,
 }
@@ -79,6 +87,7 @@ impl ObjectTable {
     pub(crate) fn new(objects: &[FileObject]) -> Option<ObjectTable> {
         let mut text = String::new();
         let mut rows = Vec::with_capacity(objects.len());
+        let mut boxes = Vec::with_capacity(objects.len());
         for o in objects {
             text.push_str(&o.name);
             let name_end = u32::try_from(text.len()).ok()?;
@@ -87,24 +96,32 @@ impl ObjectTable {
             }
             // An empty box (no triangles) is kept as none: queries never
             // cull by it.
-            let b = o
-                .bounds
-                .filter(|b| !b.is_empty())
-                .map_or([f32::NAN; 6], |b| {
-                    [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z]
-                });
+            let b = o.bounds.filter(|b| !b.is_empty());
+            boxes.push(b.as_ref().map_or(UNBOUNDED, corners));
             rows.push(Row {
                 name_end,
                 id_end: u32::try_from(text.len()).ok()?,
                 triangles: o.triangles,
-                bounds: b,
                 flags: o.flags,
+                bounded: b.is_some(),
             });
         }
+        let scene = scene_box(
+            objects
+                .iter()
+                .filter_map(|o| o.bounds.as_ref())
+                .filter(|b| !b.is_empty()),
+        );
         text.shrink_to_fit();
         let mut by_id: Vec<u32> = (0..objects.len() as u32).collect();
         by_id.sort_unstable_by(|&a, &b| objects[a as usize].id.cmp(&objects[b as usize].id));
-        Some(ObjectTable { text, rows, by_id })
+        Some(ObjectTable {
+            text,
+            rows,
+            boxes,
+            scene,
+            by_id,
+        })
     }
 
     /// The number of objects.
@@ -141,8 +158,8 @@ impl ObjectTable {
     /// Object `i`'s bounds (`i` in range).
     #[inline]
     pub(crate) fn bounds(&self, i: usize) -> Option<Aabb> {
-        let b = &self.rows[i].bounds;
-        (!b[0].is_nan()).then(|| Aabb {
+        let b = &self.boxes[i];
+        self.rows[i].bounded.then(|| Aabb {
             min: Vec3::new(b[0], b[1], b[2]),
             max: Vec3::new(b[3], b[4], b[5]),
         })
@@ -161,11 +178,34 @@ impl ObjectTable {
             .map(|k| self.by_id[k] as usize)
     }
 
+    /// Removes from `out` (a bitset over the objects) the objects whose
+    /// boxes `frustum` cannot see ([`Cull`]); culls nothing when no object
+    /// has a box (a version 1 file).
+    pub(crate) fn cull(&self, frustum: &Frustum, out: &mut [u64]) {
+        let Some(scene) = &self.scene else {
+            return;
+        };
+        let cull = Cull::new(frustum, scene);
+        for (word, boxes) in out.iter_mut().zip(self.boxes.chunks(64)) {
+            let mut bits = *word;
+            let mut kept = 0;
+            while bits != 0 {
+                let b = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                // Without a branch: half the objects go, unpredictably.
+                let keeps = boxes.get(b).is_none_or(|corners| cull.keeps(corners));
+                kept |= u64::from(keeps) << b;
+            }
+            *word &= kept;
+        }
+    }
+
     /// The bytes held.
     pub(crate) fn memory_bytes(&self) -> usize {
         std::mem::size_of::<Self>()
             + self.text.capacity()
             + self.rows.capacity() * std::mem::size_of::<Row>()
+            + self.boxes.capacity() * std::mem::size_of::<[f32; 6]>()
             + self.by_id.capacity() * 4
     }
 }
