@@ -152,6 +152,8 @@ pub mod query;
 #[cfg(feature = "builder")]
 pub mod random;
 #[cfg(feature = "builder")]
+pub mod raylog;
+#[cfg(feature = "builder")]
 pub mod render;
 #[cfg(feature = "builder")]
 pub mod report;

@@ -45,11 +45,17 @@ pub(super) struct Ctx<'a> {
     /// Set when a split was refused for the node budget: the build fails.
     pub over_budget: AtomicBool,
     pub progress: &'a (dyn Fn(f64) + Sync),
+    /// Where the rays traced go, when they are recorded
+    /// ([`super::record_rays`]); once it is full no cell is split.
+    pub record: Option<&'a crate::raylog::RayLog>,
 }
 
 impl Ctx<'_> {
     /// Traces `rays` in parallel, timing it: the closest hits.
     pub fn trace_hits(&self, rays: &[Ray], stats: &mut BuildStats) -> Vec<Option<Hit>> {
+        if let Some(log) = self.record {
+            log.push(rays);
+        }
         let start = Instant::now();
         let hits = self.tracer.closest_hits(rays);
         stats.trace_seconds += start.elapsed().as_secs_f64();
@@ -72,6 +78,9 @@ impl Ctx<'_> {
         targets: &[u32],
         stats: &mut BuildStats,
     ) -> Vec<Option<u32>> {
+        if let Some(log) = self.record {
+            log.push(rays);
+        }
         let start = Instant::now();
         let mut hits = vec![None; rays.len()];
         self.tracer
@@ -245,6 +254,8 @@ pub(super) fn build_node(
     // schedule: while no split is refused, the nodes made are those of the
     // whole tree, so a refusal happens exactly when that tree has more
     // nodes than the budget (and the build then fails).
+    // A recording build that has its rays ends: no more splits.
+    let split = split.filter(|_| !ctx.record.is_some_and(|log| log.is_full()));
     let split = split.filter(|_| {
         let made = ctx.nodes.fetch_add(2, Ordering::Relaxed) + 2;
         let within = made <= params.max_nodes;

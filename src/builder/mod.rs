@@ -56,7 +56,7 @@ use crate::geom::cell::{Cell, THETA};
 use crate::geom::{Aabb, BoxTree};
 use crate::scene::Scene;
 use crate::sprt::{SprtError, SprtParams};
-use crate::trace::Tracer;
+use crate::trace::{Ray, Tracer};
 use crate::tree::{TreeSummary, VisTree};
 
 /// The thickness given to the flat axes of a view box, as a share of its
@@ -615,6 +615,35 @@ pub fn build(
     params: &BuildParams,
     progress: &(dyn Fn(f64) + Sync),
 ) -> Result<(VisTree, BuildStats), BuildError> {
+    build_recording(scene, tracer, params, progress, None)
+}
+
+/// The first `n` rays a build of `scene` with `params` traces (cell rays,
+/// object samples as segments, edge and retest rays, in the order the
+/// build traces them), for timing ray casters on the builder's own work
+/// (`vis5d trace --kind builder`, notes/trace.md). The build stops
+/// splitting cells once it has them. The order follows the build's
+/// schedule: the same on one thread (as `vis5d trace` runs it) for the
+/// same scene, parameters and seed.
+pub fn record_rays(
+    scene: &Scene,
+    tracer: &Tracer,
+    params: &BuildParams,
+    n: usize,
+    progress: &(dyn Fn(f64) + Sync),
+) -> Result<Vec<Ray>, BuildError> {
+    let log = crate::raylog::RayLog::new(n);
+    build_recording(scene, tracer, params, progress, Some(&log))?;
+    Ok(log.into_rays())
+}
+
+fn build_recording(
+    scene: &Scene,
+    tracer: &Tracer,
+    params: &BuildParams,
+    progress: &(dyn Fn(f64) + Sync),
+    record: Option<&crate::raylog::RayLog>,
+) -> Result<(VisTree, BuildStats), BuildError> {
     params.validate()?;
     let start = Instant::now();
     let root = Cell::all_directions(params.root_box(scene));
@@ -651,6 +680,7 @@ pub fn build(
         nodes: AtomicU64::new(1),
         over_budget: AtomicBool::new(false),
         progress,
+        record,
     };
     // Every object with a surface: an empty one (no triangles) is never
     // sampled and never in a set.

@@ -27,6 +27,7 @@ mod report;
 mod report_page;
 mod scene;
 mod stat;
+mod trace;
 
 use std::io;
 use std::process::ExitCode;
@@ -157,6 +158,20 @@ enum Command {
     /// a metre). The same kind, seed and replication always give the same
     /// file.
     Scene(scene::SceneArgs),
+    /// Time the project's ray tracer: rays per second on random rays or
+    /// on the rays a real build traces.
+    ///
+    /// `--kind random` casts rays from points uniform in the scene's box
+    /// in directions uniform on the sphere; `--kind builder` records the
+    /// first `--rays` rays that a default build of the scene traces (cell
+    /// rays, and object samples as segments ending at their surface point)
+    /// on one thread. Traces them all (closest hit within each ray's
+    /// length) in passes for at least `--min-seconds`, and prints the best
+    /// pass's rays per second. `--write-rays` and `--write-triangles`
+    /// write the rays and the scene in the flat formats of notes/trace.md,
+    /// so that another ray caster can be timed on exactly the same rays
+    /// (scripts/compare-embree.sh does, with Embree).
+    Trace(trace::TraceArgs),
 }
 
 fn main() -> ExitCode {
@@ -189,6 +204,7 @@ fn main() -> ExitCode {
         },
         Command::Report(args) => report::run(&args),
         Command::Scene(args) => scene::run(&args),
+        Command::Trace(args) => trace::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

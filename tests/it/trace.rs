@@ -127,3 +127,85 @@ fn a_sealed_room_sees_only_its_walls() {
         assert!(s.bounds().contains(r.at(h.t)));
     }
 }
+
+/// `vis5d trace` writes the rays it times, in the documented format: the
+/// rays of a build (the same whatever the thread count, and those
+/// `builder::record_rays` gives on one thread) or random ones (those of
+/// `raylog::random_rays`), with the scene's triangles; its hit count is
+/// the library tracer's on the rays read back.
+#[test]
+fn trace_writes_the_rays_it_times() {
+    use vis5d::builder::{BuildParams, record_rays};
+    use vis5d::raylog::{self, read_rays};
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene::load(crate::root().join("scenes/city.obj")).unwrap();
+    let tracer = Tracer::new(&scene);
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
+    let run = |kind: &str, threads: &str, rays: &str| {
+        let out = crate::vis5d(&[
+            "trace",
+            "scenes/city.obj",
+            "--rays",
+            "3000",
+            "--kind",
+            kind,
+            "--threads",
+            threads,
+            "--min-seconds",
+            "0",
+            "--write-rays",
+            &path(rays),
+            "--write-triangles",
+            &path("tris"),
+            "--json",
+        ]);
+        assert!(out.status.success(), "{}", crate::text(&out.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let rays = read_rays(&std::fs::read(path(rays)).unwrap()).unwrap();
+        assert_eq!(v["rays"], rays.len());
+        assert!(v["rays_per_second"].as_f64().unwrap() > 0.0);
+        let hits = rays
+            .iter()
+            .filter(|r| tracer.closest_hit(r).is_some())
+            .count();
+        assert_eq!(v["hits"], hits);
+        rays
+    };
+    let builder = run("builder", "1", "b1");
+    assert_eq!(builder.len(), 3000);
+    assert_eq!(run("builder", "2", "b2"), builder);
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let recorded = one
+        .install(|| record_rays(&scene, &tracer, &BuildParams::default(), 3000, &|_| {}))
+        .unwrap();
+    let recorded: Vec<Ray> = recorded.iter().filter_map(raylog::portable).collect();
+    assert_eq!(recorded, builder);
+    // Object samples are segments: a finite tmax.
+    assert!(builder.iter().any(|r| r.tmax.is_finite()));
+    let random = run("random", "2", "r");
+    let expected: Vec<Ray> = raylog::random_rays(&scene.bounds(), 3000, 1)
+        .iter()
+        .filter_map(raylog::portable)
+        .collect();
+    assert_eq!(random, expected);
+    let tris = std::fs::read(path("tris")).unwrap();
+    let floats: Vec<f32> = tris
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+        .collect();
+    let scene_floats: Vec<f32> = scene
+        .triangles()
+        .iter()
+        .flat_map(|t| t.iter().flat_map(|p| p.to_array()))
+        .collect();
+    assert_eq!(floats, scene_floats);
+    // Bad input: no rays, a model that is not there.
+    let out = crate::vis5d(&["trace", "scenes/city.obj", "--rays", "0"]);
+    assert!(!out.status.success());
+    let out = crate::vis5d(&["trace", "scenes/nothing_here.obj", "--rays", "10"]);
+    assert!(!out.status.success());
+    assert!(crate::text(&out.stderr).contains("nothing_here.obj"));
+}
