@@ -41,9 +41,12 @@ def worker(tris_path, rays_path, share, shares, passes, barrier, out):
     bvh = time.perf_counter() - start
     times = []
     for _ in range(passes):
+        # embreex writes the hit distances into `dists`: a fresh copy each
+        # pass, made before the clock starts.
+        dists = tmax.copy()
         barrier.wait()
         t = time.perf_counter()
-        scene.run(origins, dirs, dists=tmax.copy())
+        scene.run(origins, dirs, dists=dists)
         times.append(time.perf_counter() - t)
     out.put((share, hits, bvh, times))
 
@@ -67,15 +70,19 @@ def main():
     one = time.perf_counter() - t
     passes = max(3, int(a.min_seconds * a.threads / max(one, 1e-6)) + 1)
     del scene
-    barrier = mp.Barrier(a.threads)
-    out = mp.Queue()
+    # Spawned, not forked: this process has started Embree's task threads,
+    # which a fork does not carry over safely.
+    ctx = mp.get_context("spawn")
+    barrier = ctx.Barrier(a.threads)
+    out = ctx.Queue()
     procs = [
-        mp.Process(target=worker, args=(a.triangles, a.rays, k, a.threads, passes, barrier, out))
+        ctx.Process(target=worker, args=(a.triangles, a.rays, k, a.threads, passes, barrier, out))
         for k in range(a.threads)
     ]
     for p in procs:
         p.start()
-    results = [out.get() for _ in procs]
+    # A worker that dies (out of memory, say) ends the run, not a wait.
+    results = [out.get(timeout=3600) for _ in procs]
     for p in procs:
         p.join()
     # A pass takes as long as its slowest process.

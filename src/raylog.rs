@@ -4,8 +4,9 @@
 //! (`vis5d trace --write-rays`; the format is in notes/trace.md).
 //!
 //! A ray file is a flat array of 28-byte records, nothing else: per ray
-//! the origin (x, y, z), the unit direction (x, y, z) and `tmax` (the
-//! segment's length, or +inf), seven little-endian f32. `tmin` is 0 for
+//! the origin (x, y, z), the unit direction (x, y, z) and `tmax` (how far
+//! the ray reaches: for the builder's object samples, 1 + 1e-4 times the
+//! segment's length; +inf for an unbounded ray), seven little-endian f32. `tmin` is 0 for
 //! every ray. The triangles go beside them ([`write_triangles`]): nine
 //! little-endian f32 per triangle, in the scene's order, in the same
 //! coordinates as the rays.

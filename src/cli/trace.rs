@@ -111,9 +111,18 @@ pub fn run(args: &TraceArgs) -> Result<()> {
             check_output(path, what, &[&args.file])?;
         }
     }
-    // The rays (32 bytes each), their hits (16) and the written copy.
+    if let (Some(a), Some(b)) = (&args.write_rays, &args.write_triangles)
+        && (a == b || vis5d::atomic_write::same_file(a, b))
+    {
+        anyhow::bail!(
+            "--write-rays and --write-triangles name the same file, {}",
+            a.display()
+        );
+    }
+    // The rays as made and as traced (32 bytes each, and as much again
+    // while the recording grows), their hits (16) and the written copy.
     memory::check(
-        (args.rays).saturating_mul(32 + 16 + RAY_BYTES as u64),
+        (args.rays).saturating_mul(3 * 32 + 16 + RAY_BYTES as u64),
         "--rays",
         "trace fewer rays",
     )?;

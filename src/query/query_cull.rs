@@ -68,8 +68,17 @@ impl Cull {
         for (k, &(n, d)) in frustum.planes[..frustum.count].iter().enumerate() {
             let along = n.abs().as_dvec3().dot(reach);
             let d = f64::from(d);
-            let slack = f64::from(Frustum::ANGLE_SLACK) * far + 1e-6 * (1.0 + d.abs() + along);
-            let keep = round_down(d - slack);
+            // Padded by 1e-5 of itself: `Frustum::may_see` works its slack
+            // out in f32, which may round up by a few ulps.
+            let slack = (f64::from(Frustum::ANGLE_SLACK) * far + 1e-6 * (1.0 + d.abs() + along))
+                * (1.0 + 1e-5);
+            // Past 1.8e19 an f32 length overflows and `may_see` keeps
+            // every box: so does the cull.
+            let keep = if far < 1.8e19 {
+                round_down(d - slack)
+            } else {
+                f32::NEG_INFINITY
+            };
             let (pos, neg) = (n.max(Vec3::ZERO), n.min(Vec3::ZERO));
             if k == 0 {
                 cull.eye = (pos.to_array(), neg.to_array(), keep);
