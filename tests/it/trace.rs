@@ -209,3 +209,29 @@ fn trace_writes_the_rays_it_times() {
     assert!(!out.status.success());
     assert!(crate::text(&out.stderr).contains("nothing_here.obj"));
 }
+
+/// The AVX2 traversal (where the CPU has it) and the portable one give
+/// the same hits, bit for bit, on every kind of ray of every committed
+/// scene (where the CPU lacks AVX2 both are the portable code).
+#[test]
+fn the_wide_and_the_portable_tracer_agree() {
+    for name in ["apartment", "office", "city", "forest", "machine"] {
+        let scene = scene::load(crate::root().join(format!("scenes/{name}.obj"))).unwrap();
+        let wide = Tracer::new(&scene);
+        let portable = Tracer::new(&scene).with_portable_code();
+        let objects = scene.objects().len() as u32;
+        for (k, (kind, ray)) in rays(&scene, 2000, 31).iter().enumerate() {
+            assert_eq!(
+                wide.closest_hit(ray),
+                portable.closest_hit(ray),
+                "{name}: {kind} ray {ray:?}"
+            );
+            let target = k as u32 % objects;
+            assert_eq!(
+                wide.closest_hit_towards(ray, target),
+                portable.closest_hit_towards(ray, target),
+                "{name}: {kind} ray {ray:?} towards {target}"
+            );
+        }
+    }
+}
