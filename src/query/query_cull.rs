@@ -72,10 +72,12 @@ impl Cull {
             // out in f32, which may round up by a few ulps.
             let slack = (f64::from(Frustum::ANGLE_SLACK) * far + 1e-6 * (1.0 + d.abs() + along))
                 * (1.0 + 1e-5);
+            // Two f32 steps lower still: `may_see` subtracts its slack from
+            // d in f32, which may round its threshold down by half a step.
             // Past 1.8e19 an f32 length overflows and `may_see` keeps
             // every box: so does the cull.
             let keep = if far < 1.8e19 {
-                round_down(d - slack)
+                round_down(d - slack).next_down().next_down()
             } else {
                 f32::NEG_INFINITY
             };
