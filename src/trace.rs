@@ -406,15 +406,36 @@ impl Tracer {
         self.closest_hit_towards_any(ray, target)
     }
 
-    /// [`Tracer::closest_hit_towards`] compiled for AVX2: obvhs's
-    /// traversal loop (its `traverse!` macro) with the eight children of a
-    /// node tested at once in 256-bit lanes ([`wide::node_hits`], the same
-    /// arithmetic as obvhs's 4-wide test), the triangle test inlined.
+    /// [`Tracer::closest_hit_towards`] compiled for AVX2: a node's eight
+    /// children tested at once in 256-bit lanes ([`wide::node_hits`], the
+    /// same arithmetic as obvhs's 4-wide test), the triangle test inlined.
     /// Rust never fuses a multiply and an add on its own, so the answers
     /// are bit for bit those of the portable code.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     fn closest_hit_towards_wide(&self, ray: &Ray, target: u32) -> Option<Hit> {
+        // The closure inherits this function's target features.
+        self.closest_hit_with(ray, target, |node, r, oct| wide::node_hits(node, r, oct))
+    }
+
+    /// [`Tracer::closest_hit_towards`] for any CPU.
+    #[inline(always)]
+    fn closest_hit_towards_any(&self, ray: &Ray, target: u32) -> Option<Hit> {
+        self.closest_hit_with(ray, target, |node, r, oct| node.intersect_ray(r, oct))
+    }
+
+    /// [`Tracer::closest_hit_towards`] with `node_hits` as the node test
+    /// (the hit mask of a node's children, as obvhs's
+    /// `CwBvhNode::intersect_ray` gives it): obvhs's traversal loop (its
+    /// `traverse!` macro, what `CwBvh::ray_traverse` runs), inlined into
+    /// each caller so that it is compiled for the caller's CPU features.
+    #[inline(always)]
+    fn closest_hit_with(
+        &self,
+        ray: &Ray,
+        target: u32,
+        node_hits: impl Fn(&obvhs::cwbvh::node::CwBvhNode, &obvhs::ray::Ray, u32) -> u32,
+    ) -> Option<Hit> {
         use glam::UVec2;
         if !ray.is_valid() {
             return None;
@@ -430,55 +451,26 @@ impl Tracer {
             self.bvh,
             node,
             state,
-            wide::node_hits(node, &traverse_ray, state.oct_inv4),
+            node_hits(node, &traverse_ray, state.oct_inv4),
             {
                 let i = state.primitive_id as usize;
+                // A triangle passed through does not narrow tmax.
                 if !self.passes_through(self.ids[i], target) {
                     let t = shear.intersect(&self.tris[i], traverse_ray.tmin, traverse_ray.tmax);
                     if t < f32::INFINITY && (t < best_t || (t == best_t && self.ids[i] < best)) {
                         best_t = t;
                         best = self.ids[i];
                     }
-                    // As `ray_traverse` does: narrow tmax to the hit.
+                    // Narrow tmax to the hit, as `ray_traverse` does; the
+                    // padded boxes of triangles tied at t are still entered
+                    // before t, and the triangle test accepts t == tmax, so
+                    // ties reach the test above.
                     if t < traverse_ray.tmax {
                         traverse_ray.tmax = t;
                     }
                 }
             }
         );
-        (best != u32::MAX).then(|| Hit {
-            object: self.tri_object[best as usize],
-            triangle: best,
-            t: best_t * scaled.t_factor,
-        })
-    }
-
-    /// [`Tracer::closest_hit_towards`] for any CPU.
-    #[inline(always)]
-    fn closest_hit_towards_any(&self, ray: &Ray, target: u32) -> Option<Hit> {
-        if !ray.is_valid() {
-            return None;
-        }
-        let scaled = ScaledRay::new(ray, self.dir_exponent);
-        let mut best_t = f32::INFINITY;
-        let mut best = u32::MAX;
-        let mut hit = RayHit::none();
-        let shear = Shear::new(&scaled.ray);
-        self.bvh.ray_traverse(scaled.ray, &mut hit, |r, i| {
-            if self.passes_through(self.ids[i], target) {
-                // Not narrowed: obvhs keeps tmax for an infinite answer.
-                return f32::INFINITY;
-            }
-            let t = shear.intersect(&self.tris[i], r.tmin, r.tmax);
-            if t < f32::INFINITY && (t < best_t || (t == best_t && self.ids[i] < best)) {
-                best_t = t;
-                best = self.ids[i];
-            }
-            // obvhs narrows the ray's tmax to t; the padded boxes of
-            // triangles tied at t are still entered before t, and the
-            // triangle test accepts t == tmax, so ties reach the test above.
-            t
-        });
         (best != u32::MAX).then(|| Hit {
             object: self.tri_object[best as usize],
             triangle: best,
