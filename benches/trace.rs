@@ -20,21 +20,14 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::builder::build_cwbvh_from_tris;
 use obvhs::ray::RayHit;
 use obvhs::triangle::Triangle as BvhTriangle;
-use rand::SeedableRng;
-use rand_pcg::Pcg64;
 use rayon::prelude::*;
-use vis5d::random::{uniform_direction, uniform_point};
 use vis5d::scene::Scene;
 use vis5d::trace::{Ray, Tracer};
 
 const RAYS: usize = 20_000;
 
 fn random_rays(scene: &Scene, n: usize) -> Vec<Ray> {
-    let mut rng = Pcg64::seed_from_u64(2024);
-    let b = scene.bounds();
-    (0..n)
-        .map(|_| Ray::new(uniform_point(&mut rng, &b), uniform_direction(&mut rng)))
-        .collect()
+    vis5d::raylog::random_rays(&scene.bounds(), n, 2024)
 }
 
 /// obvhs as its examples use it.
