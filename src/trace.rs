@@ -1,7 +1,10 @@
-//! Closest-hit ray casting against a whole scene: a compressed wide BVH
-//! (obvhs `CwBvh`, Ylitie et al. 2017) over every triangle, answering "which
-//! object, which triangle, at what distance" for one ray or for batches
-//! traced in parallel with rayon.
+//! Closest-hit ray casting against a whole scene, answering "which object,
+//! which triangle, at what distance" for one ray or for batches traced in
+//! parallel with rayon. Two traversals of BVHs that obvhs builds (PLOC and
+//! reinsertion): where the CPU has AVX2, an eight-wide BVH with full f32
+//! boxes and a distance-ordered stack (`trace::bvh8`, the builder's tracer);
+//! elsewhere obvhs's compressed wide BVH (`CwBvh`, Ylitie et al. 2017)
+//! and its own traversal. Their answers are the same bit for bit.
 //!
 //! This is the measuring instrument of the builder (papers/003 sec. 5 casts
 //! rays "from a random point in the cell to a random point on the object"),
@@ -20,10 +23,10 @@
 //!
 //! Invariants: triangles are stored in BVH leaf order, so traversal reads
 //! them without the `primitive_indices` indirection that raw obvhs use
-//! needs; `ids` maps them back to scene order. Every triangle's box is
-//! padded (`BOX_PAD`) and rays are rescaled on the way in (`ScaledRay`), so
-//! that obvhs's rounded slab test and its fixed `t = 1e-4` start never skip
-//! a triangle the ray hits.
+//! needs; each record holds its scene index and object. Every triangle's
+//! box is padded (`BOX_PAD`) and rays are rescaled on the way in
+//! (`ScaledRay`), so that the rounded slab tests and obvhs's fixed
+//! `t = 1e-4` start never skip a triangle the ray hits.
 //!
 //! Limit: the padding covers the slab test's rounding for origins within
 //! about a hundred scene diagonals of the scene; the builder's and the
@@ -33,10 +36,11 @@ use std::time::Duration;
 
 use glam::Vec3;
 use obvhs::BvhBuildParams;
+use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::cwbvh::CwBvh;
-use obvhs::cwbvh::builder::build_cwbvh;
+use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
+use obvhs::ploc::PlocBuilder;
 use obvhs::ray::RayHit;
-use obvhs::triangle::Triangle as BvhTriangle;
 use rayon::prelude::*;
 
 use crate::geom::Aabb;
@@ -175,12 +179,12 @@ impl Shear {
     /// The hit's `t` in `[tmin, tmax]` (two-sided), or +inf. Always
     /// inlined: into the wide tracer it is compiled for the wide CPU.
     #[inline(always)]
-    fn intersect(&self, t: &BvhTriangle, tmin: f32, tmax: f32) -> f32 {
+    fn intersect(&self, t: &Tri, tmin: f32, tmax: f32) -> f32 {
         let [kx, ky, kz] = self.k;
         let [sx, sy, sz] = self.s;
-        let a = Vec3::from(t.v0) - self.origin;
-        let b = Vec3::from(t.v1) - self.origin;
-        let c = Vec3::from(t.v2) - self.origin;
+        let a = Vec3::from(t.a) - self.origin;
+        let b = Vec3::from(t.b) - self.origin;
+        let c = Vec3::from(t.c) - self.origin;
         let (ax, ay) = (a[kx] - sx * a[kz], a[ky] - sy * a[kz]);
         let (bx, by) = (b[kx] - sx * b[kz], b[ky] - sy * b[kz]);
         let (cx, cy) = (c[kx] - sx * c[kz], c[ky] - sy * c[kz]);
@@ -274,11 +278,38 @@ pub struct Hit {
     pub t: f32,
 }
 
-fn to_bvh_triangle(t: &Triangle) -> BvhTriangle {
-    BvhTriangle {
-        v0: t[0].into(),
-        v1: t[1].into(),
-        v2: t[2].into(),
+/// A triangle as the tracer stores it: its corners, with its scene index
+/// and its object in two of the 16-byte rows' spare lanes, so that a hit
+/// reads one record and no second array.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+struct Tri {
+    a: [f32; 3],
+    /// The scene index of the triangle.
+    id: u32,
+    b: [f32; 3],
+    /// Its object.
+    object: u32,
+    c: [f32; 3],
+    _pad: u32,
+}
+
+impl Tri {
+    fn new(t: &Triangle, id: u32, object: u32) -> Self {
+        Self {
+            a: t[0].to_array(),
+            id,
+            b: t[1].to_array(),
+            object,
+            c: t[2].to_array(),
+            _pad: 0,
+        }
+    }
+
+    /// Its box.
+    fn aabb(&self) -> obvhs::aabb::Aabb {
+        let (a, b, c) = (Vec3::from(self.a), Vec3::from(self.b), Vec3::from(self.c));
+        obvhs::aabb::Aabb::new(a.min(b).min(c).into(), a.max(b).max(c).into())
     }
 }
 
@@ -291,9 +322,7 @@ pub const NO_TARGET: u32 = u32::MAX;
 pub struct Tracer {
     bvh: CwBvh,
     /// Triangles in BVH leaf order.
-    tris: Vec<BvhTriangle>,
-    /// For each triangle in BVH order, its scene index.
-    ids: Vec<u32>,
+    tris: Vec<Tri>,
     /// For each triangle in scene order, its object.
     tri_object: Vec<u32>,
     /// Per object, whether rays pass through it
@@ -302,9 +331,11 @@ pub struct Tracer {
     see_through: Option<Vec<bool>>,
     /// See [`ScaledRay`].
     dir_exponent: i32,
-    /// Whether the CPU has AVX2 and FMA: rays are then traced by code
-    /// compiled for them ([`Tracer::closest_hit_towards`]).
-    wide: bool,
+    /// Where the CPU has AVX2 and FMA, the eight-wide BVH that rays
+    /// traverse, in code compiled for them ([`bvh8`]); `None` elsewhere
+    /// (obvhs's `CwBvh` is traversed then).
+    #[cfg(target_arch = "x86_64")]
+    bvh8: Option<bvh8::Bvh8>,
     build_time: Duration,
 }
 
@@ -319,13 +350,23 @@ impl std::fmt::Debug for Tracer {
 }
 
 impl Tracer {
-    /// Builds the BVH over every triangle of `scene` (obvhs's `medium_build`
-    /// with a wider search and more reinsertion: the
-    /// best trace speed for the build time on the scenes measured in
+    /// Builds the BVHs over every triangle of `scene` (obvhs's
+    /// `medium_build` with a wider search and more reinsertion: the best
+    /// trace speed for the build time on the scenes measured in
     /// notes/trace.md).
     pub fn new(scene: &Scene) -> Self {
         let start = std::time::Instant::now();
-        let scene_tris: Vec<BvhTriangle> = scene.triangles().iter().map(to_bvh_triangle).collect();
+        let mut tri_object = vec![0u32; scene.triangles().len()];
+        for (o, obj) in scene.objects().iter().enumerate() {
+            tri_object[obj.triangles.start as usize..obj.triangles.end as usize].fill(o as u32);
+        }
+        let scene_tris: Vec<Tri> = scene
+            .triangles()
+            .iter()
+            .zip(&tri_object)
+            .enumerate()
+            .map(|(i, (t, &o))| Tri::new(t, i as u32, o))
+            .collect();
         let b = scene.bounds();
         let pad = BOX_PAD * rounding_scale(b);
         let boxes: Vec<obvhs::aabb::Aabb> = scene_tris
@@ -335,13 +376,33 @@ impl Tracer {
                 obvhs::aabb::Aabb::new(a.min - pad, a.max + pad)
             })
             .collect();
-        let bvh = build_cwbvh(&boxes, BVH_PRESET, &mut Duration::default());
-        let ids = bvh.primitive_indices.clone();
-        let tris = ids.iter().map(|&i| scene_tris[i as usize]).collect();
-        let mut tri_object = vec![0u32; scene_tris.len()];
-        for (o, obj) in scene.objects().iter().enumerate() {
-            tri_object[obj.triangles.start as usize..obj.triangles.end as usize].fill(o as u32);
-        }
+        // obvhs's `build_cwbvh`, keeping the binary BVH it converts.
+        let p = BVH_PRESET;
+        let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
+            p.ploc_search_distance,
+            &boxes,
+            (0..boxes.len() as u32).collect(),
+            p.sort_precision,
+            p.search_depth_threshold,
+        );
+        ReinsertionOptimizer::default().run(&mut bvh2, p.reinsertion_batch_ratio, None);
+        let bvh = bvh2_to_cwbvh(&bvh2, p.max_prims_per_leaf.clamp(1, 3), true, false);
+        #[cfg(target_arch = "x86_64")]
+        let bvh8 = if wide_cpu() {
+            obvhs::bvh2::leaf_collapser::collapse(
+                &mut bvh2,
+                bvh8::LEAF_MAX,
+                p.collapse_traversal_cost,
+            );
+            bvh8::Bvh8::new(&bvh2, &scene_tris)
+        } else {
+            None
+        };
+        let tris = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| scene_tris[i as usize])
+            .collect();
         let see_through = (!scene.all_occlude()).then(|| {
             scene
                 .objects()
@@ -352,11 +413,11 @@ impl Tracer {
         Self {
             bvh,
             tris,
-            ids,
             tri_object,
             see_through,
             dir_exponent: direction_exponent(b),
-            wide: wide_cpu(),
+            #[cfg(target_arch = "x86_64")]
+            bvh8,
             build_time: start.elapsed(),
         }
     }
@@ -367,7 +428,8 @@ impl Tracer {
     /// same for every tracer made).
     pub fn with_portable_code(self) -> Self {
         Self {
-            wide: false,
+            #[cfg(target_arch = "x86_64")]
+            bvh8: None,
             ..self
         }
     }
@@ -398,24 +460,12 @@ impl Tracer {
     /// object that occludes.
     pub fn closest_hit_towards(&self, ray: &Ray, target: u32) -> Option<Hit> {
         #[cfg(target_arch = "x86_64")]
-        if self.wide {
-            // SAFETY: `wide` is set only where the CPU has the features
-            // `closest_hit_towards_wide` is compiled for.
-            return unsafe { self.closest_hit_towards_wide(ray, target) };
+        if let Some(b) = &self.bvh8 {
+            // SAFETY: `bvh8` is built only where the CPU has the features
+            // `bvh8::closest_hit` is compiled for.
+            return unsafe { bvh8::closest_hit(self, b, ray, target, &mut bvh8::stack()) };
         }
         self.closest_hit_towards_any(ray, target)
-    }
-
-    /// [`Tracer::closest_hit_towards`] compiled for AVX2: a node's eight
-    /// children tested at once in 256-bit lanes ([`wide::node_hits`], the
-    /// same arithmetic as obvhs's 4-wide test), the triangle test inlined.
-    /// Rust never fuses a multiply and an add on its own, so the answers
-    /// are bit for bit those of the portable code.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    fn closest_hit_towards_wide(&self, ray: &Ray, target: u32) -> Option<Hit> {
-        // The closure inherits this function's target features.
-        self.closest_hit_with(ray, target, |node, r, oct| wide::node_hits(node, r, oct))
     }
 
     /// [`Tracer::closest_hit_towards`] for any CPU.
@@ -453,13 +503,13 @@ impl Tracer {
             state,
             node_hits(node, &traverse_ray, state.oct_inv4),
             {
-                let i = state.primitive_id as usize;
+                let tri = &self.tris[state.primitive_id as usize];
                 // A triangle passed through does not narrow tmax.
-                if !self.passes_through(self.ids[i], target) {
-                    let t = shear.intersect(&self.tris[i], traverse_ray.tmin, traverse_ray.tmax);
-                    if t < f32::INFINITY && (t < best_t || (t == best_t && self.ids[i] < best)) {
+                if !self.passes_through(tri.object, target) {
+                    let t = shear.intersect(tri, traverse_ray.tmin, traverse_ray.tmax);
+                    if t < f32::INFINITY && (t < best_t || (t == best_t && tri.id < best)) {
                         best_t = t;
-                        best = self.ids[i];
+                        best = tri.id;
                     }
                     // Narrow tmax to the hit, as `ray_traverse` does; the
                     // padded boxes of triangles tied at t are still entered
@@ -478,14 +528,13 @@ impl Tracer {
         })
     }
 
-    /// Whether rays aimed at `target` pass through scene triangle
-    /// `triangle`: it belongs to another object that does not occlude.
+    /// Whether rays aimed at `target` pass through the triangles of
+    /// object `o`: another object that does not occlude.
     #[inline]
-    fn passes_through(&self, triangle: u32, target: u32) -> bool {
-        self.see_through.as_ref().is_some_and(|st| {
-            let o = self.tri_object[triangle as usize];
-            o != target && st[o as usize]
-        })
+    fn passes_through(&self, o: u32, target: u32) -> bool {
+        self.see_through
+            .as_ref()
+            .is_some_and(|st| o != target && st[o as usize])
     }
 
     /// Every object `ray` sees, into `out` (cleared first, then in no
@@ -512,18 +561,19 @@ impl Tracer {
         let mut hit = RayHit::none();
         let shear = Shear::new(&scaled.ray);
         self.bvh.ray_traverse(scaled.ray, &mut hit, |r, i| {
-            let t = shear.intersect(&self.tris[i], r.tmin, r.tmax);
+            let tri = &self.tris[i];
+            let t = shear.intersect(tri, r.tmin, r.tmax);
             if t == f32::INFINITY {
                 return t;
             }
-            let o = self.tri_object[self.ids[i] as usize];
+            let o = tri.object;
             if see_through[o as usize] {
                 through.push((o, t));
                 return f32::INFINITY;
             }
-            if t < best_t || (t == best_t && self.ids[i] < best) {
+            if t < best_t || (t == best_t && tri.id < best) {
                 best_t = t;
-                best = self.ids[i];
+                best = tri.id;
             }
             t
         });
@@ -546,14 +596,28 @@ impl Tracer {
     /// When `out` and `rays` differ in length.
     pub fn closest_hits_into(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
         assert_eq!(rays.len(), out.len(), "one output slot per ray");
-        const CHUNK: usize = 256;
         out.par_chunks_mut(CHUNK)
             .zip(rays.par_chunks(CHUNK))
-            .for_each(|(out, rays)| {
-                for (o, r) in out.iter_mut().zip(rays) {
-                    *o = self.closest_hit(r);
-                }
-            });
+            .for_each(|(out, rays)| self.trace_run(rays, None, out));
+    }
+
+    /// The closest hits of `rays` into `out`, aimed at `targets` when
+    /// given (one traversal stack for them all).
+    fn trace_run(&self, rays: &[Ray], targets: Option<&[u32]>, out: &mut [Option<Hit>]) {
+        let target = |i: usize| targets.map_or(NO_TARGET, |t| t[i]);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(b) = &self.bvh8 {
+            let mut stack = bvh8::stack();
+            for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
+                // SAFETY: `bvh8` is built only where the CPU has the
+                // features `bvh8::closest_hit` is compiled for.
+                *o = unsafe { bvh8::closest_hit(self, b, r, target(i), &mut stack) };
+            }
+            return;
+        }
+        for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
+            *o = self.closest_hit_towards(r, target(i));
+        }
     }
 
     /// The closest hits of many rays, traced in parallel, in ray order.
@@ -576,87 +640,17 @@ impl Tracer {
     ) {
         assert_eq!(rays.len(), out.len(), "one output slot per ray");
         assert_eq!(rays.len(), targets.len(), "one target per ray");
-        const CHUNK: usize = 256;
         out.par_chunks_mut(CHUNK)
             .zip(rays.par_chunks(CHUNK).zip(targets.par_chunks(CHUNK)))
-            .for_each(|(out, (rays, targets))| {
-                for ((o, r), &t) in out.iter_mut().zip(rays).zip(targets) {
-                    *o = self.closest_hit_towards(r, t);
-                }
-            });
+            .for_each(|(out, (rays, targets))| self.trace_run(rays, Some(targets), out));
     }
 }
 
-/// obvhs's node test, eight children at once (AVX2).
+/// Rays a parallel batch hands each task.
+const CHUNK: usize = 256;
+
 #[cfg(target_arch = "x86_64")]
-mod wide {
-    use std::arch::x86_64::*;
-
-    use obvhs::cwbvh::node::{CwBvhNode, extract_byte64};
-    use obvhs::ray::Ray;
-
-    /// obvhs's box-entry floor (`cwbvh::node::EPSILON`, crate-private).
-    const EPSILON: f32 = 0.0001;
-
-    /// The hit mask of `node`'s children for `ray`, as
-    /// `CwBvhNode::intersect_ray` gives it: the same products, sums, and
-    /// maxima and minima in the same order, per child, so the same bits.
-    #[inline]
-    #[target_feature(enable = "avx,avx2")]
-    pub(super) fn node_hits(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
-        let dir_inv = node.compute_extent() * ray.inv_direction;
-        let origin = (glam::Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
-        let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
-        // Eight u8 planes as eight f32.
-        let q = |v: &[u8; 8]| {
-            let bytes = _mm_set_epi64x(0, i64::from_le_bytes(*v));
-            _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(bytes))
-        };
-        let axis = |lo: &[u8; 8], hi: &[u8; 8], negative: bool, inv: f32, org: f32| {
-            let (lo, hi) = (q(lo), q(hi));
-            let (near, far) = if negative { (hi, lo) } else { (lo, hi) };
-            let (inv, org) = (_mm256_set1_ps(inv), _mm256_set1_ps(org));
-            (
-                _mm256_add_ps(_mm256_mul_ps(near, inv), org),
-                _mm256_add_ps(_mm256_mul_ps(far, inv), org),
-            )
-        };
-        let d = ray.direction;
-        let (tmin_x, tmax_x) = axis(
-            &node.child_min_x,
-            &node.child_max_x,
-            d.x < 0.0,
-            dir_inv.x,
-            origin.x,
-        );
-        let (tmin_y, tmax_y) = axis(
-            &node.child_min_y,
-            &node.child_max_y,
-            d.y < 0.0,
-            dir_inv.y,
-            origin.y,
-        );
-        let (tmin_z, tmax_z) = axis(
-            &node.child_min_z,
-            &node.child_max_z,
-            d.z < 0.0,
-            dir_inv.z,
-            origin.z,
-        );
-        let tmin = _mm256_max_ps(tmin_x, _mm256_max_ps(tmin_y, tmin_z));
-        let tmax = _mm256_min_ps(tmax_x, _mm256_min_ps(tmax_y, tmax_z));
-        let tmin = _mm256_max_ps(tmin, _mm256_set1_ps(EPSILON));
-        let tmax = _mm256_min_ps(tmax, _mm256_set1_ps(ray.tmax));
-        let mut mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)) as u32;
-        let mut hits = 0u32;
-        while mask != 0 {
-            let child = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            hits |= extract_byte64(child_bits8, child) << extract_byte64(bit_index8, child);
-        }
-        hits
-    }
-}
+mod bvh8;
 
 /// How the tracer's BVH is built: obvhs's `medium_build` with the search
 /// distance of `slow_build` and ten times the reinsertion. On the rays of
@@ -703,7 +697,7 @@ pub fn brute_force_closest_hit(scene: &Scene, ray: &Ray) -> Option<Hit> {
         if !object.flags.occludes() {
             continue;
         }
-        let t = shear.intersect(&to_bvh_triangle(tri), r.tmin, r.tmax);
+        let t = shear.intersect(&Tri::new(tri, i as u32, 0), r.tmin, r.tmax);
         if t < best.map_or(f32::INFINITY, |b| b.1) {
             best = Some((i as u32, t));
         }
