@@ -394,6 +394,12 @@ impl Tracer {
                 bvh8::LEAF_MAX,
                 p.collapse_traversal_cost,
             );
+            // As obvhs's `build_bvh2` does after a collapse.
+            ReinsertionOptimizer::default().run(
+                &mut bvh2,
+                p.reinsertion_batch_ratio * p.post_collapse_reinsertion_batch_ratio_multiplier,
+                None,
+            );
             bvh8::Bvh8::new(&bvh2, &scene_tris)
         } else {
             None
