@@ -483,8 +483,9 @@ impl Tracer {
     /// [`Tracer::closest_hit_towards`] with `node_hits` as the node test
     /// (the hit mask of a node's children, as obvhs's
     /// `CwBvhNode::intersect_ray` gives it): obvhs's traversal loop (its
-    /// `traverse!` macro, what `CwBvh::ray_traverse` runs), inlined into
-    /// each caller so that it is compiled for the caller's CPU features.
+    /// `traverse!` macro, what `CwBvh::ray_traverse` runs). The node test
+    /// is passed in so that a caller compiled for other CPU features could
+    /// supply its own; today the portable code is the only caller.
     #[inline(always)]
     fn closest_hit_with(
         &self,
