@@ -313,6 +313,9 @@ impl Tri {
     }
 }
 
+/// A traversal's best hit before any: (`t`, triangle) of none.
+const NO_HIT: (f32, u32) = (f32::INFINITY, u32::MAX);
+
 /// No target: [`Tracer::closest_hit_towards`] with it is
 /// [`Tracer::closest_hit`].
 pub const NO_TARGET: u32 = u32::MAX;
@@ -498,8 +501,7 @@ impl Tracer {
             return None;
         }
         let scaled = ScaledRay::new(ray, self.dir_exponent);
-        let mut best_t = f32::INFINITY;
-        let mut best = u32::MAX;
+        let mut best = NO_HIT;
         let shear = Shear::new(&scaled.ray);
         let mut traverse_ray = scaled.ray;
         let mut state = self.bvh.new_traversal(scaled.ray.direction);
@@ -511,27 +513,56 @@ impl Tracer {
             node_hits(node, &traverse_ray, state.oct_inv4),
             {
                 let tri = &self.tris[state.primitive_id as usize];
-                // A triangle passed through does not narrow tmax.
-                if !self.passes_through(tri.object, target) {
-                    let t = shear.intersect(tri, traverse_ray.tmin, traverse_ray.tmax);
-                    if t < f32::INFINITY && (t < best_t || (t == best_t && tri.id < best)) {
-                        best_t = t;
-                        best = tri.id;
-                    }
-                    // Narrow tmax to the hit, as `ray_traverse` does; the
-                    // padded boxes of triangles tied at t are still entered
-                    // before t, and the triangle test accepts t == tmax, so
-                    // ties reach the test above.
-                    if t < traverse_ray.tmax {
-                        traverse_ray.tmax = t;
-                    }
-                }
+                // Narrows tmax to a hit, as `ray_traverse` does.
+                self.offer(
+                    &shear,
+                    tri,
+                    target,
+                    traverse_ray.tmin,
+                    &mut traverse_ray.tmax,
+                    &mut best,
+                );
             }
         );
-        (best != u32::MAX).then(|| Hit {
-            object: self.tri_object[best as usize],
-            triangle: best,
-            t: best_t * scaled.t_factor,
+        self.hit(best, scaled.t_factor)
+    }
+
+    /// Tests triangle `tri` for a ray sheared as `shear` and aimed at
+    /// `target`, within `[tmin, *tmax]`: a closer hit, or one at the same
+    /// `t` on a lower triangle index, becomes `best` (`t`, scene index),
+    /// and any hit narrows `tmax`. The padded boxes of triangles tied at
+    /// `t` are still entered before `t` and the test accepts `t == tmax`,
+    /// so ties reach it. A triangle passed through changes nothing. Both
+    /// traversals test their triangles with it.
+    #[inline(always)]
+    fn offer(
+        &self,
+        shear: &Shear,
+        tri: &Tri,
+        target: u32,
+        tmin: f32,
+        tmax: &mut f32,
+        best: &mut (f32, u32),
+    ) {
+        if self.passes_through(tri.object, target) {
+            return;
+        }
+        let t = shear.intersect(tri, tmin, *tmax);
+        if t < f32::INFINITY && (t < best.0 || (t == best.0 && tri.id < best.1)) {
+            *best = (t, tri.id);
+        }
+        if t < *tmax {
+            *tmax = t;
+        }
+    }
+
+    /// The hit that a traversal's `best` (see [`Tracer::offer`]) stands
+    /// for, `t` scaled back by `t_factor` ([`ScaledRay`]).
+    fn hit(&self, best: (f32, u32), t_factor: f32) -> Option<Hit> {
+        (best.1 != NO_HIT.1).then(|| Hit {
+            object: self.tri_object[best.1 as usize],
+            triangle: best.1,
+            t: best.0 * t_factor,
         })
     }
 

@@ -28,7 +28,7 @@ use std::arch::x86_64::*;
 
 use obvhs::bvh2::Bvh2;
 
-use super::{Hit, Ray, ScaledRay, Shear, Tracer, Tri};
+use super::{Hit, NO_HIT, Ray, ScaledRay, Shear, Tracer, Tri};
 
 /// Children a node has at most.
 const WIDTH: usize = 8;
@@ -224,8 +224,7 @@ pub(super) fn closest_hit(
     let shear = Shear::new(r);
     let tmin = r.tmin;
     let mut tmax = r.tmax;
-    let mut best_t = f32::INFINITY;
-    let mut best = u32::MAX;
+    let mut best = NO_HIT;
     let origin = [r.origin.x, r.origin.y, r.origin.z];
     let inv = [r.inv_direction.x, r.inv_direction.y, r.inv_direction.z];
     let negative = inv.map(|i| i < 0.0);
@@ -245,18 +244,7 @@ pub(super) fn closest_hit(
             let first = (reference & FIRST_MASK) as usize;
             let count = ((reference & !LEAF) >> COUNT_SHIFT) as usize;
             for tri in &bvh.tris[first..first + count] {
-                // A triangle passed through does not narrow tmax.
-                if tracer.passes_through(tri.object, target) {
-                    continue;
-                }
-                let t = shear.intersect(tri, tmin, tmax);
-                if t < f32::INFINITY && (t < best_t || (t == best_t && tri.id < best)) {
-                    best_t = t;
-                    best = tri.id;
-                }
-                if t < tmax {
-                    tmax = t;
-                }
+                tracer.offer(&shear, tri, target, tmin, &mut tmax, &mut best);
             }
             continue;
         }
@@ -303,9 +291,5 @@ pub(super) fn closest_hit(
             top += 1;
         }
     }
-    (best != u32::MAX).then(|| Hit {
-        object: tracer.tri_object[best as usize],
-        triangle: best,
-        t: best_t * scaled.t_factor,
-    })
+    tracer.hit(best, scaled.t_factor)
 }
