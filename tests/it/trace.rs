@@ -9,7 +9,7 @@ use vis5d::random::{uniform_direction as unit, uniform_point};
 use vis5d::scene::{self, Scene};
 use vis5d::trace::{Ray, Tracer, brute_force_closest_hit};
 
-/// Random rays of five kinds over `scene`, `n` of each.
+/// Random rays of six kinds over `scene`, `n` of each.
 fn rays(scene: &Scene, n: usize, seed: u64) -> Vec<(&'static str, Ray)> {
     let mut rng = Pcg64::seed_from_u64(seed);
     let b = scene.bounds().expanded(0.05 * scene.bounds().diagonal());
@@ -39,6 +39,11 @@ fn rays(scene: &Scene, n: usize, seed: u64) -> Vec<(&'static str, Ray)> {
         let axis = [Vec3::X, Vec3::Y, Vec3::Z][rng.random_range(0..3usize)];
         let dir = if rng.random_bool(0.5) { axis } else { -axis };
         out.push(("axis", Ray::new(o, dir)));
+        // From afar: up to ten diagonals from the scene, at a surface
+        // point (the box test's rounding grows with the origin's size).
+        let far = scene.bounds().center() + unit(&mut rng) * rng.random_range(1.0..10.0f32) * diag;
+        let q = scene.sample_surface(rng.random_range(0..objects), &mut rng);
+        out.push(("from afar", Ray::new(far, q - far)));
     }
     out
 }
