@@ -1,10 +1,10 @@
 //! Closest-hit ray casting against a whole scene, answering "which object,
 //! which triangle, at what distance" for one ray or for batches traced in
-//! parallel with rayon. Two traversals of BVHs that obvhs builds (PLOC and
-//! reinsertion): where the CPU has AVX2, an eight-wide BVH with full f32
-//! boxes and a distance-ordered stack (`trace::bvh8`, the builder's tracer);
-//! elsewhere obvhs's compressed wide BVH (`CwBvh`, Ylitie et al. 2017)
-//! and its own traversal. Their answers are the same bit for bit.
+//! parallel with rayon. One BVH, built by obvhs (PLOC and reinsertion)
+//! and widened here to eight children a node with full f32 boxes and
+//! leaves of up to eight triangles (`trace::bvh8`); two traversals of it:
+//! where the CPU has AVX2, one compiled for it (the builder's tracer),
+//! elsewhere a portable one. Their answers are the same bit for bit.
 //!
 //! This is the measuring instrument of the builder (papers/003 sec. 5 casts
 //! rays "from a random point in the cell to a random point on the object"),
@@ -24,9 +24,8 @@
 //! Invariants: triangles are stored in BVH leaf order, so traversal reads
 //! them without the `primitive_indices` indirection that raw obvhs use
 //! needs; each record holds its scene index and object. Every triangle's
-//! box is padded (`BOX_PAD`) and rays are rescaled on the way in
-//! (`ScaledRay`), so that the rounded slab tests and obvhs's fixed
-//! `t = 1e-4` start never skip a triangle the ray hits.
+//! box is padded (`BOX_PAD`), so that the rounded slab tests never skip a
+//! triangle the ray hits.
 //!
 //! Limit: the padding covers the slab test's rounding for origins within
 //! about a hundred scene diagonals of the scene; the builder's and the
@@ -37,10 +36,7 @@ use std::time::Duration;
 use glam::Vec3;
 use obvhs::BvhBuildParams;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
-use obvhs::cwbvh::CwBvh;
-use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
 use obvhs::ploc::PlocBuilder;
-use obvhs::ray::RayHit;
 use rayon::prelude::*;
 
 use crate::geom::Aabb;
@@ -219,20 +215,23 @@ impl Shear {
     }
 }
 
-/// A ray as obvhs traces it, with `t_factor` to turn its `t` back into
-/// the caller's `t`.
+/// A ray as the traversals take it (obvhs's ray type), with `t_factor` to
+/// turn its `t` back into the caller's `t`.
 ///
 /// Note: deviations from obvhs's own `Ray::new`, each for exactness:
 /// - the direction is scaled by an exact power of two to a length near
-///   2^-20 of the scene's size. obvhs's box test starts at `t = 1e-4`
-///   (`cwbvh::node::EPSILON`) whatever the ray's `tmin`, so after a hit
-///   closer than that it can skip every other box and return a hit that is
-///   not the closest. Scaled, `t = 1e-4` is about 1e-10 of the scene's size.
-///   Power-of-two scaling commutes with rounding, so the triangle test gives
-///   exactly `t / 2^k`, and `t_factor = 2^k` gives back exactly `t`;
-/// - -0.0 components become +0.0: obvhs orders the slabs by `d < 0.0` but
-///   `safe_inverse(-0.0)` is negative, and the box test then fails: a ray
-///   along `-Vec3::Z` = (-0, -0, -1) missed everything;
+///   2^-20 of the scene's size. obvhs's own box test starts at `t = 1e-4`
+///   (`cwbvh::node::EPSILON`) whatever the ray's `tmin`, which made its
+///   traversal (used here until 2026-12-05) skip hits closer than that;
+///   the traversals now are the project's own and have no such start, and
+///   the scaling stays: it changes no answer (power-of-two scaling
+///   commutes with rounding, so the triangle test gives exactly
+///   `t / 2^k`, and `t_factor = 2^k` gives back exactly `t`), and the
+///   slab test's bounds (notes/trace.md) are stated for it;
+/// - -0.0 components become +0.0: the slabs are ordered by the inverse's
+///   sign, and `safe_inverse(-0.0)` is negative while the component is
+///   not: a ray along `-Vec3::Z` = (-0, -0, -1) missed everything in
+///   obvhs's box test;
 /// - the inverse direction is `1 / d` clamped to 1e20 in magnitude, not
 ///   `safe_inverse`'s 1 / `f32::EPSILON`, which would make the box test
 ///   treat nearly axis-parallel rays as moving sideways faster than they do.
@@ -323,9 +322,8 @@ pub const NO_TARGET: u32 = u32::MAX;
 /// A BVH over a scene's triangles, answering closest-hit queries. Tracing
 /// takes `&self` and is safe from many threads at once.
 pub struct Tracer {
-    bvh: CwBvh,
-    /// Triangles in BVH leaf order.
-    tris: Vec<Tri>,
+    /// The BVH, with its triangles in leaf order.
+    bvh: bvh8::Bvh8,
     /// For each triangle in scene order, its object.
     tri_object: Vec<u32>,
     /// Per object, whether rays pass through it
@@ -334,29 +332,30 @@ pub struct Tracer {
     see_through: Option<Vec<bool>>,
     /// See [`ScaledRay`].
     dir_exponent: i32,
-    /// Where the CPU has AVX2 and FMA, the eight-wide BVH that rays
-    /// traverse, in code compiled for them ([`bvh8`]); `None` elsewhere
-    /// (obvhs's `CwBvh` is traversed then).
-    #[cfg(target_arch = "x86_64")]
-    bvh8: Option<bvh8::Bvh8>,
+    /// Whether rays take the traversal compiled for AVX2 ([`bvh8::avx2`]):
+    /// where the CPU has it and the BVH is shallow enough for its stack;
+    /// else the portable one ([`bvh8::Bvh8::walk`]).
+    wide: bool,
     build_time: Duration,
 }
 
 impl std::fmt::Debug for Tracer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Tracer")
-            .field("triangles", &self.tris.len())
-            .field("bvh_nodes", &self.bvh.nodes.len())
+            .field("triangles", &self.tri_object.len())
+            .field("bvh", &self.bvh)
+            .field("wide", &self.wide)
             .field("build_time", &self.build_time)
             .finish()
     }
 }
 
 impl Tracer {
-    /// Builds the BVHs over every triangle of `scene` (obvhs's
-    /// `medium_build` with a wider search and more reinsertion: the best
-    /// trace speed for the build time on the scenes measured in
-    /// notes/trace.md).
+    /// Builds the BVH over every triangle of `scene` (obvhs's
+    /// `medium_build` with a wider search and more reinsertion, collapsed
+    /// to leaves of up to eight triangles and widened to eight children a
+    /// node: the best trace speed for the build time on the scenes
+    /// measured in notes/trace.md).
     pub fn new(scene: &Scene) -> Self {
         let start = std::time::Instant::now();
         let mut tri_object = vec![0u32; scene.triangles().len()];
@@ -379,7 +378,8 @@ impl Tracer {
                 obvhs::aabb::Aabb::new(a.min - pad, a.max + pad)
             })
             .collect();
-        // obvhs's `build_cwbvh`, keeping the binary BVH it converts.
+        // obvhs's binary BVH, collapsed to leaves of at most eight
+        // triangles (as its `build_bvh2` does), then widened (`Bvh8::new`).
         let p = BVH_PRESET;
         let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
             p.ploc_search_distance,
@@ -389,29 +389,15 @@ impl Tracer {
             p.search_depth_threshold,
         );
         ReinsertionOptimizer::default().run(&mut bvh2, p.reinsertion_batch_ratio, None);
-        let bvh = bvh2_to_cwbvh(&bvh2, p.max_prims_per_leaf.clamp(1, 3), true, false);
-        #[cfg(target_arch = "x86_64")]
-        let bvh8 = if wide_cpu() {
-            obvhs::bvh2::leaf_collapser::collapse(
-                &mut bvh2,
-                bvh8::LEAF_MAX,
-                p.collapse_traversal_cost,
-            );
-            // As obvhs's `build_bvh2` does after a collapse.
-            ReinsertionOptimizer::default().run(
-                &mut bvh2,
-                p.reinsertion_batch_ratio * p.post_collapse_reinsertion_batch_ratio_multiplier,
-                None,
-            );
-            bvh8::Bvh8::new(&bvh2, &scene_tris)
-        } else {
-            None
-        };
-        let tris = bvh
-            .primitive_indices
-            .iter()
-            .map(|&i| scene_tris[i as usize])
-            .collect();
+        obvhs::bvh2::leaf_collapser::collapse(&mut bvh2, bvh8::LEAF_MAX, p.collapse_traversal_cost);
+        // As obvhs's `build_bvh2` does after a collapse.
+        ReinsertionOptimizer::default().run(
+            &mut bvh2,
+            p.reinsertion_batch_ratio * p.post_collapse_reinsertion_batch_ratio_multiplier,
+            None,
+        );
+        let bvh = bvh8::Bvh8::new(&bvh2, &scene_tris);
+        let wide = wide_cpu() && bvh.fits_stack();
         let see_through = (!scene.all_occlude()).then(|| {
             scene
                 .objects()
@@ -421,12 +407,10 @@ impl Tracer {
         });
         Self {
             bvh,
-            tris,
             tri_object,
             see_through,
             dir_exponent: direction_exponent(b),
-            #[cfg(target_arch = "x86_64")]
-            bvh8,
+            wide,
             build_time: start.elapsed(),
         }
     }
@@ -437,8 +421,7 @@ impl Tracer {
     /// same for every tracer made).
     pub fn with_portable_code(self) -> Self {
         Self {
-            #[cfg(target_arch = "x86_64")]
-            bvh8: None,
+            wide: false,
             ..self
         }
     }
@@ -450,7 +433,7 @@ impl Tracer {
 
     /// The number of triangles traced against.
     pub fn triangle_count(&self) -> usize {
-        self.tris.len()
+        self.tri_object.len()
     }
 
     /// The closest hit of `ray` in `[tmin, tmax]` on an object that
@@ -469,62 +452,14 @@ impl Tracer {
     /// object that occludes.
     pub fn closest_hit_towards(&self, ray: &Ray, target: u32) -> Option<Hit> {
         #[cfg(target_arch = "x86_64")]
-        if let Some(b) = &self.bvh8 {
-            // SAFETY: `bvh8` is built only where the CPU has the features
-            // `bvh8::closest_hit` is compiled for.
-            return unsafe { bvh8::closest_hit(self, b, ray, target, &mut bvh8::stack()) };
+        if self.wide {
+            // SAFETY: `wide` is set only where the CPU has the features
+            // `avx2::closest_hit` is compiled for.
+            return unsafe {
+                bvh8::avx2::closest_hit(self, &self.bvh, ray, target, &mut bvh8::avx2::stack())
+            };
         }
-        self.closest_hit_towards_any(ray, target)
-    }
-
-    /// [`Tracer::closest_hit_towards`] for any CPU.
-    #[inline(always)]
-    fn closest_hit_towards_any(&self, ray: &Ray, target: u32) -> Option<Hit> {
-        self.closest_hit_with(ray, target, |node, r, oct| node.intersect_ray(r, oct))
-    }
-
-    /// [`Tracer::closest_hit_towards`] with `node_hits` as the node test
-    /// (the hit mask of a node's children, as obvhs's
-    /// `CwBvhNode::intersect_ray` gives it): obvhs's traversal loop (its
-    /// `traverse!` macro, what `CwBvh::ray_traverse` runs). The node test
-    /// is passed in so that a caller compiled for other CPU features could
-    /// supply its own; today the portable code is the only caller.
-    #[inline(always)]
-    fn closest_hit_with(
-        &self,
-        ray: &Ray,
-        target: u32,
-        node_hits: impl Fn(&obvhs::cwbvh::node::CwBvhNode, &obvhs::ray::Ray, u32) -> u32,
-    ) -> Option<Hit> {
-        use glam::UVec2;
-        if !ray.is_valid() {
-            return None;
-        }
-        let scaled = ScaledRay::new(ray, self.dir_exponent);
-        let mut best = NO_HIT;
-        let shear = Shear::new(&scaled.ray);
-        let mut traverse_ray = scaled.ray;
-        let mut state = self.bvh.new_traversal(scaled.ray.direction);
-        let mut node;
-        obvhs::traverse!(
-            self.bvh,
-            node,
-            state,
-            node_hits(node, &traverse_ray, state.oct_inv4),
-            {
-                let tri = &self.tris[state.primitive_id as usize];
-                // Narrows tmax to a hit, as `ray_traverse` does.
-                self.offer(
-                    &shear,
-                    tri,
-                    target,
-                    traverse_ray.tmin,
-                    &mut traverse_ray.tmax,
-                    &mut best,
-                );
-            }
-        );
-        self.hit(best, scaled.t_factor)
+        bvh8::closest_hit(self, &self.bvh, ray, target, &mut Vec::new())
     }
 
     /// Tests triangle `tri` for a ray sheared as `shear` and aimed at
@@ -592,28 +527,29 @@ impl Tracer {
             return;
         };
         let scaled = ScaledRay::new(ray, self.dir_exponent);
+        let shear = Shear::new(&scaled.ray);
+        let tmin = scaled.ray.tmin;
         let mut best_t = f32::INFINITY;
         let mut best = u32::MAX;
         // (object, t) of the see-through hits.
         let mut through: Vec<(u32, f32)> = Vec::new();
-        let mut hit = RayHit::none();
-        let shear = Shear::new(&scaled.ray);
-        self.bvh.ray_traverse(scaled.ray, &mut hit, |r, i| {
-            let tri = &self.tris[i];
-            let t = shear.intersect(tri, r.tmin, r.tmax);
-            if t == f32::INFINITY {
-                return t;
+        self.bvh.walk(&scaled.ray, &mut Vec::new(), |pack, tmax| {
+            for tri in pack.triangles() {
+                let t = shear.intersect(&tri, tmin, *tmax);
+                if t == f32::INFINITY {
+                    continue;
+                }
+                let o = tri.object;
+                if see_through[o as usize] {
+                    through.push((o, t));
+                    continue;
+                }
+                if t < best_t || (t == best_t && tri.id < best) {
+                    best_t = t;
+                    best = tri.id;
+                }
+                *tmax = tmax.min(t);
             }
-            let o = tri.object;
-            if see_through[o as usize] {
-                through.push((o, t));
-                return f32::INFINITY;
-            }
-            if t < best_t || (t == best_t && tri.id < best) {
-                best_t = t;
-                best = tri.id;
-            }
-            t
         });
         if best != u32::MAX {
             out.push(self.tri_object[best as usize]);
@@ -644,17 +580,18 @@ impl Tracer {
     fn trace_run(&self, rays: &[Ray], targets: Option<&[u32]>, out: &mut [Option<Hit>]) {
         let target = |i: usize| targets.map_or(NO_TARGET, |t| t[i]);
         #[cfg(target_arch = "x86_64")]
-        if let Some(b) = &self.bvh8 {
-            let mut stack = bvh8::stack();
+        if self.wide {
+            let mut stack = bvh8::avx2::stack();
             for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
-                // SAFETY: `bvh8` is built only where the CPU has the
-                // features `bvh8::closest_hit` is compiled for.
-                *o = unsafe { bvh8::closest_hit(self, b, r, target(i), &mut stack) };
+                // SAFETY: `wide` is set only where the CPU has the
+                // features `avx2::closest_hit` is compiled for.
+                *o = unsafe { bvh8::avx2::closest_hit(self, &self.bvh, r, target(i), &mut stack) };
             }
             return;
         }
+        let mut stack = Vec::new();
         for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
-            *o = self.closest_hit_towards(r, target(i));
+            *o = bvh8::closest_hit(self, &self.bvh, r, target(i), &mut stack);
         }
     }
 
@@ -687,7 +624,6 @@ impl Tracer {
 /// Rays a parallel batch hands each task.
 const CHUNK: usize = 256;
 
-#[cfg(target_arch = "x86_64")]
 mod bvh8;
 
 /// How the tracer's BVH is built: obvhs's `medium_build` with the search
@@ -828,12 +764,13 @@ mod tests {
     #[test]
     fn shared_edges_go_to_the_lowest_triangle() {
         let s = quad_scene();
-        let tracer = Tracer::new(&s);
-        // Straight down the diagonal shared by triangles 2 and 3.
-        let r = Ray::new(Vec3::new(0.5, 0.5, 3.0), -Vec3::Z);
-        let h = tracer.closest_hit(&r).unwrap();
-        assert_eq!(Some(h), brute_force_closest_hit(&s, &r));
-        assert_eq!(h.triangle, 2);
+        for tracer in [Tracer::new(&s), Tracer::new(&s).with_portable_code()] {
+            // Straight down the diagonal shared by triangles 2 and 3.
+            let r = Ray::new(Vec3::new(0.5, 0.5, 3.0), -Vec3::Z);
+            let h = tracer.closest_hit(&r).unwrap();
+            assert_eq!(Some(h), brute_force_closest_hit(&s, &r));
+            assert_eq!(h.triangle, 2);
+        }
     }
 
     #[test]
@@ -858,7 +795,6 @@ mod tests {
     #[test]
     fn rays_through_shared_edges_do_not_leak() {
         use crate::scene::procedural::shapes::push_box;
-        use rand::{RngExt, SeedableRng};
         let mut b = SceneBuilder::new(SceneFormat::Procedural);
         b.begin_object("wall");
         let p = |y: f32, z: f32| Vec3::new(2.0, y, z);
@@ -879,7 +815,19 @@ mod tests {
             b.push_triangle(t).unwrap();
         }
         let scene = b.finish(Path::new("leak")).unwrap();
-        let tracer = Tracer::new(&scene);
+        // Both traversals (the same one twice where the CPU lacks AVX2).
+        for tracer in [
+            Tracer::new(&scene),
+            Tracer::new(&scene).with_portable_code(),
+        ] {
+            no_leaks(&tracer);
+        }
+    }
+
+    /// The checks of [`rays_through_shared_edges_do_not_leak`] with
+    /// `tracer`.
+    fn no_leaks(tracer: &Tracer) {
+        use rand::{RngExt, SeedableRng};
         let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
         for _ in 0..20_000 {
             // Along +x through a point of the diagonal y = z.

@@ -221,8 +221,11 @@ pub enum SceneError {
         /// How many degenerate triangles were dropped on the way.
         dropped: usize,
     },
-    /// The scene is too large for 32-bit triangle indices.
-    #[error("{}: the scene has more than 2^32 - 1 triangles", path.display())]
+    /// The scene has more than [`MAX_TRIANGLES`] triangles.
+    #[error(
+        "{}: the scene has more than 2^30 triangles, the most the tracer indexes",
+        path.display()
+    )]
     TooLarge {
         /// The scene file.
         path: PathBuf,
@@ -287,6 +290,10 @@ pub enum SceneError {
 /// escape closed rooms (the apartment scaled to 1e-15 lost 8% of its
 /// pixels; at 1e-12 it was exact; notes/reliability.md).
 pub const MIN_EXTENT: f32 = 1e-10;
+
+/// The most triangles a scene may have (2^30, over a billion): the
+/// tracer's BVH addresses its leaves' triangles with 30 bits.
+pub const MAX_TRIANGLES: u32 = 1 << 30;
 
 /// The largest scene diagonal vis5d accepts. Above it f32 arithmetic
 /// loses the scene (the apartment scaled to 1e16 lost 4% of its pixels,

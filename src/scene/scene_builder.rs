@@ -218,7 +218,7 @@ impl SceneBuilder {
             if end == start {
                 report.empty_objects.push(objects.len());
             }
-            if end >= u64::from(u32::MAX) {
+            if end > u64::from(super::MAX_TRIANGLES) {
                 return Err(SceneError::TooLarge {
                     path: path.to_owned(),
                 });

@@ -1,33 +1,37 @@
-//! The single-ray traversal on CPUs with AVX2: a BVH of eight children a
-//! node with full-precision f32 boxes, all eight tested against the ray
-//! in one 256-bit pass, and a stack of entries ordered by entry distance,
-//! so that the nearest child is visited first and a popped entry that
-//! starts beyond the ray's closest hit so far is dropped without reading
-//! it (the design of CPU ray tracers such as Embree's BVH8; Wald, Benthin
-//! and Boulos 2008, *Getting rid of packets*).
+//! The tracer's BVH: eight children a node with full-precision f32
+//! boxes, and a stack of entries ordered by entry distance, so that the
+//! nearest child is visited first and a popped entry that starts beyond
+//! the ray's closest hit so far is dropped without reading it (the design
+//! of CPU ray tracers such as Embree's BVH8; Wald, Benthin and Boulos
+//! 2008, *Getting rid of packets*).
 //!
-//! obvhs's compressed wide BVH (`CwBvh`) is made for GPUs: each visit
-//! decodes 8-bit child boxes, and its traversal never drops an entry by
-//! distance. The nodes here are built from the same binary BVH (obvhs's
-//! PLOC build and reinsertion), collapsed to leaves of at most
-//! [`LEAF_MAX`] triangles by obvhs's SAH collapse and widened by taking,
-//! eight times at most, the largest-area inner node among a node's
-//! children and putting its two children in its place. A leaf's triangles
-//! are stored in one or two [`Pack`]s of four (corners by axis and lane,
-//! as Embree's `Triangle4`), and all of them are tested against the ray in
-//! one 256-bit pass of the watertight test. The nearest child entered is
-//! visited next without a trip through the stack.
+//! The nodes are built from obvhs's binary BVH (its PLOC build and
+//! reinsertion), collapsed to leaves of at most [`LEAF_MAX`] triangles by
+//! obvhs's SAH collapse and widened by taking, eight times at most, the
+//! largest-area inner node among a node's children and putting its two
+//! children in its place. A leaf's triangles are stored in one or two
+//! [`Pack`]s of four (corners by axis and lane, as Embree's `Triangle4`).
 //!
-//! Exact, as the other traversal is:
+//! Two traversals: on CPUs with AVX2, [`avx2`] tests a node's eight boxes
+//! in one 256-bit pass and a leaf's triangles in another, and visits the
+//! nearest child entered next without a trip through the stack; on any
+//! CPU, [`Bvh8::walk`] does the same in plain code, one box and one
+//! triangle at a time. (obvhs's own compressed wide BVH, `CwBvh`, was the
+//! portable traversal until 2026-12-05: made for GPUs, it decodes 8-bit
+//! child boxes at each visit, never drops an entry by distance, and
+//! starts its box tests at a fixed `t = 1e-4`, which missed hits that
+//! close to the origin.)
+//!
+//! Exact, in both traversals:
 //! - the boxes are the padded boxes of the triangles (`BOX_PAD`) and
 //!   their unions, unrounded;
-//! - the slab test is `plane * inverse - origin * inverse` per axis, one
-//!   fused multiply-subtract (obvhs computes `(plane - origin) *
-//!   inverse`), on the same scaled ray ([`super::ScaledRay`]). Its
-//!   rounding moves a plane by at most `2^-24 (|origin| + 2 |plane -
-//!   origin|)` along its axis: under the padding for origins within
-//!   about fifty times the scene's rounding scale, as the unfused form's
-//!   `3 * 2^-24 |plane - origin|`;
+//! - the slab test is `plane * inverse - origin * inverse` per axis in
+//!   the AVX2 code, one fused multiply-subtract, and `(plane - origin) *
+//!   inverse` in the portable code (as obvhs's), on the same scaled ray
+//!   ([`super::ScaledRay`]). The fused form's rounding moves a plane by at
+//!   most `2^-24 (|origin| + 2 |plane - origin|)` along its axis, the
+//!   other's by `3 * 2^-24 |plane - origin|`: both under the padding for
+//!   origins within about fifty times the scene's rounding scale;
 //! - an entry is dropped only when it starts strictly beyond the ray's
 //!   `tmax`, so the triangles tied at the closest `t` are all tested and
 //!   the tie goes to the lowest index;
@@ -35,15 +39,16 @@
 //!   same order on every lane, and leaves a lane with an edge function of
 //!   zero to the scalar test (which decides it in f64).
 //!
-//! The answers are the other traversal's bit for bit
+//! The answers are the same bit for bit in both, and the brute force's
 //! (`trace::the_wide_and_the_portable_tracer_agree`, and the brute-force
 //! tests).
-
-use std::arch::x86_64::*;
 
 use obvhs::bvh2::Bvh2;
 
 use super::{Hit, NO_HIT, Ray, ScaledRay, Shear, Tracer, Tri};
+
+#[cfg(target_arch = "x86_64")]
+pub(super) mod avx2;
 
 /// Children a node has at most.
 const WIDTH: usize = 8;
@@ -59,7 +64,7 @@ const LANES: usize = 4;
 /// ray hits.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-struct Pack {
+pub(super) struct Pack {
     v: [[[f32; LANES]; 3]; 3],
     id: [u32; LANES],
     object: [u32; LANES],
@@ -68,7 +73,7 @@ struct Pack {
 impl Pack {
     const EMPTY: Self = Self {
         v: [[[f32::NAN; LANES]; 3]; 3],
-        id: [u32::MAX; LANES],
+        id: [NO_TRIANGLE; LANES],
         object: [0; LANES],
     };
 
@@ -91,11 +96,18 @@ impl Pack {
 /// traversal then.
 const STACK: usize = 256;
 
-/// A child reference with this bit is a leaf: `count << COUNT_SHIFT |
-/// first triangle`.
+/// A child reference with this bit is a leaf: `LEAF | [TWO] | first
+/// pack`, with [`TWO`] when it has two packs.
 const LEAF: u32 = 1 << 31;
-const COUNT_SHIFT: u32 = 27;
-const FIRST_MASK: u32 = (1 << COUNT_SHIFT) - 1;
+/// A leaf reference with this bit has two packs, one without it.
+const TWO: u32 = 1 << 30;
+const FIRST_MASK: u32 = TWO - 1;
+
+/// The packs of leaf reference `r`: (first, count).
+#[inline(always)]
+fn leaf_packs(r: u32) -> (usize, usize) {
+    ((r & FIRST_MASK) as usize, 1 + ((r & TWO) >> 30) as usize)
+}
 
 /// An empty child slot: a box no ray enters.
 const NONE: u32 = u32::MAX;
@@ -126,6 +138,9 @@ pub(super) struct Bvh8 {
     /// The root's reference (a node, or a leaf for a scene of few
     /// triangles).
     root: u32,
+    /// Whether a traversal never needs more than 256 stack entries (seven
+    /// a level): the AVX2 traversal's condition.
+    fits_stack: bool,
 }
 
 impl std::fmt::Debug for Bvh8 {
@@ -140,9 +155,12 @@ impl std::fmt::Debug for Bvh8 {
 impl Bvh8 {
     /// The wide BVH of `bvh` (a binary BVH over the padded boxes of
     /// `scene_tris`, in scene order, with at most [`LEAF_MAX`] triangles a
-    /// leaf), or `None` when it has no triangles or its traversal could
-    /// need more than the stack holds.
-    pub(super) fn new(bvh: &Bvh2, scene_tris: &[Tri]) -> Option<Self> {
+    /// leaf; at least one triangle, and at most
+    /// [`MAX_TRIANGLES`](crate::scene::MAX_TRIANGLES)).
+    ///
+    /// # Panics
+    /// When `bvh` has no triangles, more than that or larger leaves.
+    pub(super) fn new(bvh: &Bvh2, scene_tris: &[Tri]) -> Self {
         let leaf = |n: &obvhs::bvh2::node::Bvh2Node, packs: &mut Vec<Pack>| {
             let first = packs.len() as u32;
             let range = n.first_index as usize..(n.first_index + n.prim_count) as usize;
@@ -160,20 +178,32 @@ impl Bvh8 {
                 }
                 packs.push(pack);
             }
-            let count = packs.len() as u32 - first;
-            LEAF | (count << COUNT_SHIFT) | first
+            let two = if packs.len() as u32 - first == 2 {
+                TWO
+            } else {
+                0
+            };
+            LEAF | two | first
         };
-        if bvh.nodes.is_empty()
-            || bvh.primitive_indices.len() > FIRST_MASK as usize
-            || bvh.nodes.iter().any(|n| n.prim_count > 15 * LANES as u32)
-        {
-            return None;
-        }
+        assert!(
+            !bvh.nodes.is_empty() && bvh.primitive_indices.len() <= FIRST_MASK as usize,
+            "the tracer takes 1 to 2^30 triangles, not {}",
+            bvh.primitive_indices.len()
+        );
+        assert!(
+            bvh.nodes.iter().all(|n| n.prim_count <= LEAF_MAX),
+            "leaves of at most {LEAF_MAX} triangles"
+        );
         let mut packs = Vec::with_capacity(bvh.primitive_indices.len().div_ceil(LANES));
         let mut nodes = Vec::new();
         if bvh.nodes[0].is_leaf() {
             let root = leaf(&bvh.nodes[0], &mut packs);
-            return Some(Self { nodes, packs, root });
+            return Self {
+                nodes,
+                packs,
+                root,
+                fits_stack: true,
+            };
         }
         // (binary node, wide node to fill, its depth)
         let mut work = vec![(0usize, 0usize, 1usize)];
@@ -217,293 +247,192 @@ impl Bvh8 {
             }
             nodes[slot] = node;
         }
-        if 1 + (WIDTH - 1) * depth > STACK {
-            return None;
-        }
-        Some(Self {
+        Self {
             nodes,
             packs,
             root: 0,
-        })
+            fits_stack: (WIDTH - 1) * depth < STACK,
+        }
     }
 }
 
-/// Eight f32 as a register.
-#[inline]
-#[target_feature(enable = "avx")]
-fn load(a: &[f32; WIDTH]) -> __m256 {
-    bytemuck::cast(*a)
+impl Pack {
+    /// Its triangles (the lanes in use).
+    pub(super) fn triangles(&self) -> impl Iterator<Item = Tri> + '_ {
+        (0..LANES)
+            .filter(|&lane| self.id[lane] != NO_TRIANGLE)
+            .map(|lane| self.tri(lane))
+    }
 }
 
-/// The traversal's stack: (child reference, entry `t`) pairs. Made once
-/// for many rays (it is 2 KiB).
-pub(super) type Stack = [(u32, f32); STACK];
+/// The id of an unused lane of a [`Pack`].
+const NO_TRIANGLE: u32 = u32::MAX;
 
-/// A new [`Stack`].
-pub(super) fn stack() -> Stack {
-    [(0, 0.0); STACK]
-}
-
-/// Asks the CPU to start loading what `reference` points to (a node's
-/// four cache lines, or a leaf's triangles), to be read when it is popped.
-#[inline(always)]
-fn prefetch(bvh: &Bvh8, reference: u32) {
-    let line = |p: *const u8| {
-        // SAFETY: a prefetch never faults, and reads nothing the program
-        // sees; `p` is in bounds of a live allocation besides.
-        unsafe { _mm_prefetch::<_MM_HINT_T0>(p.cast()) }
-    };
-    if reference & LEAF != 0 {
-        let first = (reference & FIRST_MASK) as usize;
-        let count = ((reference & !LEAF) >> COUNT_SHIFT) as usize;
-        let p = bvh.packs[first..].as_ptr().cast::<u8>();
-        for k in 0..3 * count.min(2) {
-            line(p.wrapping_add(64 * k));
-        }
-    } else {
-        let p = (&bvh.nodes[reference as usize] as *const Node).cast::<u8>();
-        for k in 0..4 {
-            line(p.wrapping_add(64 * k));
+impl Bvh8 {
+    /// Calls `leaf` with each pack of every leaf whose box `r` enters
+    /// within `[r.tmin, tmax]`, the nearest entries first, where `leaf`
+    /// may lower `tmax` (to the closest hit so far); `stack` is scratch.
+    /// The traversal for any CPU: the slab test is obvhs's `(plane -
+    /// origin) * inverse` per axis, and an entry is dropped only when it
+    /// starts beyond `tmax`, so every triangle that `r` hits within the
+    /// final `tmax` is offered to `leaf`, as the AVX2 traversal offers
+    /// it; the stack grows as deep as the tree needs.
+    pub(super) fn walk(
+        &self,
+        r: &obvhs::ray::Ray,
+        stack: &mut Vec<(u32, f32)>,
+        mut leaf: impl FnMut(&Pack, &mut f32),
+    ) {
+        let origin = [r.origin.x, r.origin.y, r.origin.z];
+        let inv = [r.inv_direction.x, r.inv_direction.y, r.inv_direction.z];
+        let mut tmax = r.tmax;
+        stack.clear();
+        stack.push((self.root, r.tmin));
+        while let Some((reference, enter)) = stack.pop() {
+            if enter > tmax {
+                continue;
+            }
+            if reference & LEAF != 0 {
+                let (first, count) = leaf_packs(reference);
+                for pack in &self.packs[first..first + count] {
+                    leaf(pack, &mut tmax);
+                }
+                continue;
+            }
+            let node = &self.nodes[reference as usize];
+            // The eight slab tests, axis by axis (loops the compiler can
+            // vectorise; no value is NaN, so `>` and `<` pick as max and
+            // min do).
+            let mut near = [r.tmin; WIDTH];
+            let mut far = [tmax; WIDTH];
+            for k in 0..3 {
+                let (a, b) = if inv[k] < 0.0 {
+                    (&node.hi[k], &node.lo[k])
+                } else {
+                    (&node.lo[k], &node.hi[k])
+                };
+                for lane in 0..WIDTH {
+                    let (ta, tb) = (
+                        (a[lane] - origin[k]) * inv[k],
+                        (b[lane] - origin[k]) * inv[k],
+                    );
+                    near[lane] = if ta > near[lane] { ta } else { near[lane] };
+                    far[lane] = if tb < far[lane] { tb } else { far[lane] };
+                }
+            }
+            // Push the children entered, the nearest on top.
+            let base = stack.len();
+            for lane in 0..WIDTH {
+                if near[lane] <= far[lane] {
+                    let entry = (node.child[lane], near[lane]);
+                    stack.push(entry);
+                    let mut at = stack.len() - 1;
+                    while at > base && stack[at - 1].1 < entry.1 {
+                        stack[at] = stack[at - 1];
+                        at -= 1;
+                    }
+                    stack[at] = entry;
+                }
+            }
         }
     }
 }
 
 /// The closest hit of `ray` on an occluder or on `target` (see
-/// [`Tracer::closest_hit_towards`]), with `stack` as scratch.
-#[target_feature(enable = "avx,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+/// [`Tracer::closest_hit_towards`]) by [`Bvh8::walk`], for any CPU, with
+/// `stack` as scratch.
 pub(super) fn closest_hit(
     tracer: &Tracer,
     bvh: &Bvh8,
     ray: &Ray,
     target: u32,
-    stack: &mut Stack,
+    stack: &mut Vec<(u32, f32)>,
 ) -> Option<Hit> {
     if !ray.is_valid() {
         return None;
     }
     let scaled = ScaledRay::new(ray, tracer.dir_exponent);
-    let r = &scaled.ray;
-    let shear = Shear::new(r);
-    let sheared = Sheared::new(&shear);
-    let tmin = r.tmin;
-    let mut tmax = r.tmax;
+    let shear = Shear::new(&scaled.ray);
+    let tmin = scaled.ray.tmin;
     let mut best = NO_HIT;
-    let origin = [r.origin.x, r.origin.y, r.origin.z];
-    let inv = [r.inv_direction.x, r.inv_direction.y, r.inv_direction.z];
-    let negative = inv.map(|i| i < 0.0);
-    let rinv = inv.map(|v| _mm256_set1_ps(v));
-    let org_rinv = [0, 1, 2].map(|k| _mm256_set1_ps(origin[k] * inv[k]));
-    let tmin_v = _mm256_set1_ps(tmin);
-
-    // The reference visited now (entered within `tmax`), and the stack of
-    // those entered but not visited yet.
-    let mut current = bvh.root;
-    let mut top = 0usize;
-    'visit: loop {
-        if current & LEAF != 0 {
-            let first = (current & FIRST_MASK) as usize;
-            let count = ((current & !LEAF) >> COUNT_SHIFT) as usize;
-            for two in bvh.packs[first..first + count].chunks(2) {
-                let (lo, hi) = (&two[0], &two[two.len() - 1]);
-                let both = two.len() == 2;
-                tmax = test_packs(
-                    tracer, &sheared, &shear, lo, hi, both, target, tmin, tmax, &mut best,
-                );
-            }
-        } else {
-            let node = &bvh.nodes[current as usize];
-            let slab = |k: usize| {
-                let (near, far) = if negative[k] {
-                    (&node.hi[k], &node.lo[k])
-                } else {
-                    (&node.lo[k], &node.hi[k])
-                };
-                (
-                    _mm256_fmsub_ps(load(near), rinv[k], org_rinv[k]),
-                    _mm256_fmsub_ps(load(far), rinv[k], org_rinv[k]),
-                )
-            };
-            let (nx, fx) = slab(0);
-            let (ny, fy) = slab(1);
-            let (nz, fz) = slab(2);
-            let near = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, tmin_v));
-            let far = _mm256_min_ps(
-                _mm256_min_ps(fx, fy),
-                _mm256_min_ps(fz, _mm256_set1_ps(tmax)),
-            );
-            let mut mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
-            if mask & mask.wrapping_sub(1) == 0 && mask != 0 {
-                // One child entered: visit it next, no stack.
-                current = node.child[mask.trailing_zeros() as usize % WIDTH];
-                continue 'visit;
-            }
-            if mask != 0 {
-                let near: [f32; WIDTH] = bytemuck::cast(near);
-                // Push the children entered, ordered so that the nearest
-                // is on top, then visit it.
-                let base = top;
-                while mask != 0 {
-                    let lane = mask.trailing_zeros() as usize % WIDTH;
-                    mask &= mask - 1;
-                    let entry = (node.child[lane], near[lane]);
-                    prefetch(bvh, entry.0);
-                    // Insertion among the new entries, farthest at the
-                    // bottom.
-                    let mut at = top;
-                    while at > base && stack[(at - 1) % STACK].1 < entry.1 {
-                        stack[at % STACK] = stack[(at - 1) % STACK];
-                        at -= 1;
-                    }
-                    stack[at % STACK] = entry;
-                    top += 1;
-                }
-                top -= 1;
-                current = stack[top % STACK].0;
-                continue 'visit;
-            }
-        }
-        // The next entry that starts within `tmax`.
-        loop {
-            if top == 0 {
-                break 'visit;
-            }
-            top -= 1;
-            let (reference, enter) = stack[top % STACK];
-            if enter <= tmax {
-                current = reference;
-                continue 'visit;
-            }
-        }
-    }
+    bvh.walk(&scaled.ray, stack, |pack, tmax| {
+        offer_pack(tracer, &shear, pack, target, tmin, tmax, &mut best);
+    });
     tracer.hit(best, scaled.t_factor)
 }
 
-/// A [`Shear`] as registers: the origin's coordinates in the sheared
-/// frame's axis order, and the shear's three factors, in every lane.
-struct Sheared {
-    origin: [__m256; 3],
-    s: [__m256; 3],
-}
-
-impl Sheared {
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn new(shear: &Shear) -> Self {
-        let o = shear.origin;
-        Self {
-            origin: shear.k.map(|k| _mm256_set1_ps(o[k])),
-            s: shear.s.map(|s| _mm256_set1_ps(s)),
-        }
-    }
-}
-
-/// [`Tracer::offer`] of each triangle of packs `lo` and `hi` (lanes 0-3
-/// and 4-7; `hi` counts only when `both`), the watertight test of
-/// [`Shear::intersect`] run on all lanes at once with the same operations
-/// in the same order (so the same `t`, bit for bit); a lane with an edge
-/// function of zero is left to the scalar test, which decides it in f64.
-#[inline(never)]
-#[target_feature(enable = "avx,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-#[allow(clippy::too_many_arguments)]
-fn test_packs(
+/// [`Tracer::offer`] of each triangle of `pack` in plain code: the
+/// watertight test of [`Shear::intersect`] lane by lane in loops the
+/// compiler can vectorise, with the same operations in the same order (so
+/// the same `t`, bit for bit); a lane with an edge function of zero is
+/// left to the scalar test, which decides it in f64.
+fn offer_pack(
     tracer: &Tracer,
-    sheared: &Sheared,
     shear: &Shear,
-    lo: &Pack,
-    hi: &Pack,
-    both: bool,
+    pack: &Pack,
     target: u32,
     tmin: f32,
-    mut tmax: f32,
+    tmax: &mut f32,
     best: &mut (f32, u32),
-) -> f32 {
+) {
     let [kx, ky, kz] = shear.k;
-    let [ox, oy, oz] = sheared.origin;
-    let [sx, sy, sz] = sheared.s;
-    let ld = |k: usize, axis: usize| -> __m256 { bytemuck::cast([lo.v[k][axis], hi.v[k][axis]]) };
+    let [sx, sy, sz] = shear.s;
+    let o = shear.origin;
     // A corner's sheared x and y, and its z scaled by the shear's sz.
-    let corner = |k: usize| {
-        let x = _mm256_sub_ps(ld(k, kx), ox);
-        let y = _mm256_sub_ps(ld(k, ky), oy);
-        let z = _mm256_sub_ps(ld(k, kz), oz);
-        (
-            _mm256_sub_ps(x, _mm256_mul_ps(sx, z)),
-            _mm256_sub_ps(y, _mm256_mul_ps(sy, z)),
-            _mm256_mul_ps(sz, z),
-        )
+    let corner = |c: usize| {
+        let v = &pack.v[c];
+        let (mut x, mut y, mut z) = ([0.0f32; LANES], [0.0f32; LANES], [0.0f32; LANES]);
+        for lane in 0..LANES {
+            let pz = v[kz][lane] - o[kz];
+            x[lane] = (v[kx][lane] - o[kx]) - sx * pz;
+            y[lane] = (v[ky][lane] - o[ky]) - sy * pz;
+            z[lane] = sz * pz;
+        }
+        (x, y, z)
     };
     let (ax, ay, az) = corner(0);
     let (bx, by, bz) = corner(1);
     let (cx, cy, cz) = corner(2);
-    let u = _mm256_sub_ps(_mm256_mul_ps(cx, by), _mm256_mul_ps(cy, bx));
-    let v = _mm256_sub_ps(_mm256_mul_ps(ax, cy), _mm256_mul_ps(ay, cx));
-    let w = _mm256_sub_ps(_mm256_mul_ps(bx, ay), _mm256_mul_ps(by, ax));
-    let zero = _mm256_setzero_ps();
-    let cmp_any = |f: fn(__m256, __m256) -> __m256| {
-        _mm256_or_ps(_mm256_or_ps(f(u, zero), f(v, zero)), f(w, zero))
-    };
-    let on_edge = cmp_any(|a, b| _mm256_cmp_ps::<_CMP_EQ_OQ>(a, b));
-    let negative = cmp_any(|a, b| _mm256_cmp_ps::<_CMP_LT_OQ>(a, b));
-    let positive = cmp_any(|a, b| _mm256_cmp_ps::<_CMP_GT_OQ>(a, b));
-    let det = _mm256_add_ps(_mm256_add_ps(u, v), w);
-    let tt = _mm256_add_ps(
-        _mm256_add_ps(_mm256_mul_ps(u, az), _mm256_mul_ps(v, bz)),
-        _mm256_mul_ps(w, cz),
-    );
-    // Both negated where det < 0 (det == 0 is no hit).
-    let sign = _mm256_and_ps(det, _mm256_set1_ps(-0.0));
-    let tt = _mm256_xor_ps(tt, sign);
-    let det = _mm256_xor_ps(det, sign);
-    let t = _mm256_div_ps(tt, det);
-    let inside = _mm256_and_ps(
-        _mm256_cmp_ps::<_CMP_GE_OQ>(t, _mm256_set1_ps(tmin)),
-        _mm256_cmp_ps::<_CMP_LE_OQ>(t, _mm256_set1_ps(tmax)),
-    );
-    let miss = _mm256_or_ps(
-        _mm256_and_ps(negative, positive),
-        _mm256_cmp_ps::<_CMP_EQ_OQ>(det, zero),
-    );
-    let lanes = if both { 0xff } else { 0x0f };
-    let mut hits =
-        _mm256_movemask_ps(_mm256_andnot_ps(_mm256_or_ps(miss, on_edge), inside)) as u32 & lanes;
-    let mut edges = _mm256_movemask_ps(on_edge) as u32 & lanes;
-    if hits | edges == 0 {
-        return tmax;
-    }
-    let t: [f32; 2 * LANES] = bytemuck::cast(t);
-    let pack = |lane: usize| {
-        if lane < LANES {
-            (lo, lane)
-        } else {
-            (hi, lane - LANES)
+    let limit = *tmax;
+    let mut t = [f32::INFINITY; LANES];
+    let mut on_edge = [false; LANES];
+    for lane in 0..LANES {
+        let u = cx[lane] * by[lane] - cy[lane] * bx[lane];
+        let v = ax[lane] * cy[lane] - ay[lane] * cx[lane];
+        let w = bx[lane] * ay[lane] - by[lane] * ax[lane];
+        on_edge[lane] = u == 0.0 || v == 0.0 || w == 0.0;
+        let miss = (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0);
+        let det = u + v + w;
+        let tt = u * az[lane] + v * bz[lane] + w * cz[lane];
+        let (tt, det) = if det < 0.0 { (-tt, -det) } else { (tt, det) };
+        let hit = tt / det;
+        if !miss && det != 0.0 && hit >= tmin && hit <= limit {
+            t[lane] = hit;
         }
-    };
-    let limit = tmax;
-    while hits != 0 {
-        let lane = hits.trailing_zeros() as usize;
-        hits &= hits - 1;
-        let (p, l) = pack(lane);
-        if tracer.passes_through(p.object[l], target) {
+    }
+    for lane in 0..LANES {
+        if pack.id[lane] == NO_TRIANGLE {
             continue;
         }
-        let (t, id) = (t[lane], p.id[l]);
-        if t < best.0 || (t == best.0 && id < best.1) {
-            *best = (t, id);
-        }
-        if t < tmax {
-            tmax = t;
-        }
-    }
-    while edges != 0 {
-        let lane = edges.trailing_zeros() as usize;
-        edges &= edges - 1;
-        let (p, l) = pack(lane);
-        // The lanes above were tested within `limit`; so is this one.
-        let mut lane_tmax = limit;
-        tracer.offer(shear, &p.tri(l), target, tmin, &mut lane_tmax, best);
-        if lane_tmax < tmax {
-            tmax = lane_tmax;
+        if on_edge[lane] {
+            // Tested within `limit`, as the other lanes were.
+            let mut lane_tmax = limit;
+            tracer.offer(shear, &pack.tri(lane), target, tmin, &mut lane_tmax, best);
+            *tmax = tmax.min(lane_tmax);
+        } else if t[lane] < f32::INFINITY && !tracer.passes_through(pack.object[lane], target) {
+            let (t, id) = (t[lane], pack.id[lane]);
+            if t < best.0 || (t == best.0 && id < best.1) {
+                *best = (t, id);
+            }
+            *tmax = tmax.min(t);
         }
     }
-    tmax
+}
+
+impl Bvh8 {
+    /// Whether a traversal never needs more than 256 stack entries (seven
+    /// a level): the AVX2 traversal's condition.
+    pub(super) fn fits_stack(&self) -> bool {
+        self.fits_stack
+    }
 }

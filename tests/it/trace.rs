@@ -9,7 +9,7 @@ use vis5d::random::{uniform_direction as unit, uniform_point};
 use vis5d::scene::{self, Scene};
 use vis5d::trace::{Ray, Tracer, brute_force_closest_hit};
 
-/// Random rays of six kinds over `scene`, `n` of each.
+/// Random rays of seven kinds over `scene`, `n` of each.
 fn rays(scene: &Scene, n: usize, seed: u64) -> Vec<(&'static str, Ray)> {
     let mut rng = Pcg64::seed_from_u64(seed);
     let b = scene.bounds().expanded(0.05 * scene.bounds().diagonal());
@@ -44,6 +44,15 @@ fn rays(scene: &Scene, n: usize, seed: u64) -> Vec<(&'static str, Ray)> {
         let far = scene.bounds().center() + unit(&mut rng) * rng.random_range(1.0..10.0f32) * diag;
         let q = scene.sample_surface(rng.random_range(0..objects), &mut rng);
         out.push(("from afar", Ray::new(far, q - far)));
+        // A segment of 1e-9 of the diagonal from a surface point: obvhs's
+        // traversal, used until 2026-12-05 where the CPU lacks AVX2, started
+        // its box tests past such a segment's end.
+        let s = scene.sample_surface(rng.random_range(0..objects), &mut rng);
+        let q = s + unit(&mut rng) * (1e-9 * diag);
+        out.push((
+            "short from surface",
+            Ray::segment(s, q).with_tmax(1.0 + 1e-4),
+        ));
     }
     out
 }

@@ -1,0 +1,289 @@
+//! The traversal of [`Bvh8`] compiled for CPUs with AVX2 (chosen at run
+//! time): the eight slab tests of a node in one 256-bit pass, and a
+//! leaf's triangles in another (see the parent module for the design and
+//! why the answers are exact).
+
+use std::arch::x86_64::*;
+
+use super::{
+    Bvh8, Hit, LANES, LEAF, NO_HIT, Node, Pack, Ray, STACK, ScaledRay, Shear, Tracer, WIDTH,
+    leaf_packs,
+};
+
+/// Eight f32 as a register.
+#[inline]
+#[target_feature(enable = "avx")]
+fn load(a: &[f32; WIDTH]) -> __m256 {
+    bytemuck::cast(*a)
+}
+
+/// The traversal's stack: (child reference, entry `t`) pairs. Made once
+/// for many rays (it is 2 KiB).
+pub(in crate::trace) type Stack = [(u32, f32); STACK];
+
+/// A new [`Stack`].
+pub(in crate::trace) fn stack() -> Stack {
+    [(0, 0.0); STACK]
+}
+
+/// Asks the CPU to start loading what `reference` points to (a node's
+/// four cache lines, or a leaf's triangles), to be read when it is popped.
+#[inline(always)]
+fn prefetch(bvh: &Bvh8, reference: u32) {
+    let line = |p: *const u8| {
+        // SAFETY: a prefetch never faults, and reads nothing the program
+        // sees; `p` is in bounds of a live allocation besides.
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(p.cast()) }
+    };
+    if reference & LEAF != 0 {
+        let (first, count) = leaf_packs(reference);
+        let p = bvh.packs[first..].as_ptr().cast::<u8>();
+        for k in 0..3 * count {
+            line(p.wrapping_add(64 * k));
+        }
+    } else {
+        let p = (&bvh.nodes[reference as usize] as *const Node).cast::<u8>();
+        for k in 0..4 {
+            line(p.wrapping_add(64 * k));
+        }
+    }
+}
+
+/// The closest hit of `ray` on an occluder or on `target` (see
+/// [`Tracer::closest_hit_towards`]), with `stack` as scratch.
+#[target_feature(enable = "avx,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+pub(in crate::trace) fn closest_hit(
+    tracer: &Tracer,
+    bvh: &Bvh8,
+    ray: &Ray,
+    target: u32,
+    stack: &mut Stack,
+) -> Option<Hit> {
+    if !ray.is_valid() {
+        return None;
+    }
+    let scaled = ScaledRay::new(ray, tracer.dir_exponent);
+    let r = &scaled.ray;
+    let shear = Shear::new(r);
+    let sheared = Sheared::new(&shear);
+    let tmin = r.tmin;
+    let mut tmax = r.tmax;
+    let mut best = NO_HIT;
+    let origin = [r.origin.x, r.origin.y, r.origin.z];
+    let inv = [r.inv_direction.x, r.inv_direction.y, r.inv_direction.z];
+    let negative = inv.map(|i| i < 0.0);
+    let rinv = inv.map(|v| _mm256_set1_ps(v));
+    let org_rinv = [0, 1, 2].map(|k| _mm256_set1_ps(origin[k] * inv[k]));
+    let tmin_v = _mm256_set1_ps(tmin);
+
+    // The reference visited now (entered within `tmax`), and the stack of
+    // those entered but not visited yet.
+    let mut current = bvh.root;
+    let mut top = 0usize;
+    'visit: loop {
+        if current & LEAF != 0 {
+            let (first, count) = leaf_packs(current);
+            {
+                let (lo, hi) = (&bvh.packs[first], &bvh.packs[first + count - 1]);
+                let both = count == 2;
+                tmax = test_packs(
+                    tracer, &sheared, &shear, lo, hi, both, target, tmin, tmax, &mut best,
+                );
+            }
+        } else {
+            let node = &bvh.nodes[current as usize];
+            let slab = |k: usize| {
+                let (near, far) = if negative[k] {
+                    (&node.hi[k], &node.lo[k])
+                } else {
+                    (&node.lo[k], &node.hi[k])
+                };
+                (
+                    _mm256_fmsub_ps(load(near), rinv[k], org_rinv[k]),
+                    _mm256_fmsub_ps(load(far), rinv[k], org_rinv[k]),
+                )
+            };
+            let (nx, fx) = slab(0);
+            let (ny, fy) = slab(1);
+            let (nz, fz) = slab(2);
+            let near = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, tmin_v));
+            let far = _mm256_min_ps(
+                _mm256_min_ps(fx, fy),
+                _mm256_min_ps(fz, _mm256_set1_ps(tmax)),
+            );
+            let mut mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+            if mask & mask.wrapping_sub(1) == 0 && mask != 0 {
+                // One child entered: visit it next, no stack.
+                current = node.child[mask.trailing_zeros() as usize % WIDTH];
+                continue 'visit;
+            }
+            if mask != 0 {
+                let near: [f32; WIDTH] = bytemuck::cast(near);
+                // Push the children entered, ordered so that the nearest
+                // is on top, then visit it.
+                let base = top;
+                while mask != 0 {
+                    let lane = mask.trailing_zeros() as usize % WIDTH;
+                    mask &= mask - 1;
+                    let entry = (node.child[lane], near[lane]);
+                    prefetch(bvh, entry.0);
+                    // Insertion among the new entries, farthest at the
+                    // bottom.
+                    let mut at = top;
+                    while at > base && stack[(at - 1) % STACK].1 < entry.1 {
+                        stack[at % STACK] = stack[(at - 1) % STACK];
+                        at -= 1;
+                    }
+                    stack[at % STACK] = entry;
+                    top += 1;
+                }
+                top -= 1;
+                current = stack[top % STACK].0;
+                continue 'visit;
+            }
+        }
+        // The next entry that starts within `tmax`.
+        loop {
+            if top == 0 {
+                break 'visit;
+            }
+            top -= 1;
+            let (reference, enter) = stack[top % STACK];
+            if enter <= tmax {
+                current = reference;
+                continue 'visit;
+            }
+        }
+    }
+    tracer.hit(best, scaled.t_factor)
+}
+
+/// A [`Shear`] as registers: the origin's coordinates in the sheared
+/// frame's axis order, and the shear's three factors, in every lane.
+struct Sheared {
+    origin: [__m256; 3],
+    s: [__m256; 3],
+}
+
+impl Sheared {
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn new(shear: &Shear) -> Self {
+        let o = shear.origin;
+        Self {
+            origin: shear.k.map(|k| _mm256_set1_ps(o[k])),
+            s: shear.s.map(|s| _mm256_set1_ps(s)),
+        }
+    }
+}
+
+/// [`Tracer::offer`] of each triangle of packs `lo` and `hi` (lanes 0-3
+/// and 4-7; `hi` counts only when `both`), the watertight test of
+/// [`Shear::intersect`] run on all lanes at once with the same operations
+/// in the same order (so the same `t`, bit for bit); a lane with an edge
+/// function of zero is left to the scalar test, which decides it in f64.
+#[inline(never)]
+#[target_feature(enable = "avx,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+#[allow(clippy::too_many_arguments)]
+fn test_packs(
+    tracer: &Tracer,
+    sheared: &Sheared,
+    shear: &Shear,
+    lo: &Pack,
+    hi: &Pack,
+    both: bool,
+    target: u32,
+    tmin: f32,
+    mut tmax: f32,
+    best: &mut (f32, u32),
+) -> f32 {
+    let [kx, ky, kz] = shear.k;
+    let [ox, oy, oz] = sheared.origin;
+    let [sx, sy, sz] = sheared.s;
+    let ld = |k: usize, axis: usize| -> __m256 { bytemuck::cast([lo.v[k][axis], hi.v[k][axis]]) };
+    // A corner's sheared x and y, and its z scaled by the shear's sz.
+    let corner = |k: usize| {
+        let x = _mm256_sub_ps(ld(k, kx), ox);
+        let y = _mm256_sub_ps(ld(k, ky), oy);
+        let z = _mm256_sub_ps(ld(k, kz), oz);
+        (
+            _mm256_sub_ps(x, _mm256_mul_ps(sx, z)),
+            _mm256_sub_ps(y, _mm256_mul_ps(sy, z)),
+            _mm256_mul_ps(sz, z),
+        )
+    };
+    let (ax, ay, az) = corner(0);
+    let (bx, by, bz) = corner(1);
+    let (cx, cy, cz) = corner(2);
+    let u = _mm256_sub_ps(_mm256_mul_ps(cx, by), _mm256_mul_ps(cy, bx));
+    let v = _mm256_sub_ps(_mm256_mul_ps(ax, cy), _mm256_mul_ps(ay, cx));
+    let w = _mm256_sub_ps(_mm256_mul_ps(bx, ay), _mm256_mul_ps(by, ax));
+    let zero = _mm256_setzero_ps();
+    let cmp_any = |f: fn(__m256, __m256) -> __m256| {
+        _mm256_or_ps(_mm256_or_ps(f(u, zero), f(v, zero)), f(w, zero))
+    };
+    let on_edge = cmp_any(|a, b| _mm256_cmp_ps::<_CMP_EQ_OQ>(a, b));
+    let negative = cmp_any(|a, b| _mm256_cmp_ps::<_CMP_LT_OQ>(a, b));
+    let positive = cmp_any(|a, b| _mm256_cmp_ps::<_CMP_GT_OQ>(a, b));
+    let det = _mm256_add_ps(_mm256_add_ps(u, v), w);
+    let tt = _mm256_add_ps(
+        _mm256_add_ps(_mm256_mul_ps(u, az), _mm256_mul_ps(v, bz)),
+        _mm256_mul_ps(w, cz),
+    );
+    // Both negated where det < 0 (det == 0 is no hit).
+    let sign = _mm256_and_ps(det, _mm256_set1_ps(-0.0));
+    let tt = _mm256_xor_ps(tt, sign);
+    let det = _mm256_xor_ps(det, sign);
+    let t = _mm256_div_ps(tt, det);
+    let inside = _mm256_and_ps(
+        _mm256_cmp_ps::<_CMP_GE_OQ>(t, _mm256_set1_ps(tmin)),
+        _mm256_cmp_ps::<_CMP_LE_OQ>(t, _mm256_set1_ps(tmax)),
+    );
+    let miss = _mm256_or_ps(
+        _mm256_and_ps(negative, positive),
+        _mm256_cmp_ps::<_CMP_EQ_OQ>(det, zero),
+    );
+    let lanes = if both { 0xff } else { 0x0f };
+    let mut hits =
+        _mm256_movemask_ps(_mm256_andnot_ps(_mm256_or_ps(miss, on_edge), inside)) as u32 & lanes;
+    let mut edges = _mm256_movemask_ps(on_edge) as u32 & lanes;
+    if hits | edges == 0 {
+        return tmax;
+    }
+    let t: [f32; 2 * LANES] = bytemuck::cast(t);
+    let pack = |lane: usize| {
+        if lane < LANES {
+            (lo, lane)
+        } else {
+            (hi, lane - LANES)
+        }
+    };
+    let limit = tmax;
+    while hits != 0 {
+        let lane = hits.trailing_zeros() as usize;
+        hits &= hits - 1;
+        let (p, l) = pack(lane);
+        if tracer.passes_through(p.object[l], target) {
+            continue;
+        }
+        let (t, id) = (t[lane], p.id[l]);
+        if t < best.0 || (t == best.0 && id < best.1) {
+            *best = (t, id);
+        }
+        if t < tmax {
+            tmax = t;
+        }
+    }
+    while edges != 0 {
+        let lane = edges.trailing_zeros() as usize;
+        edges &= edges - 1;
+        let (p, l) = pack(lane);
+        // The lanes above were tested within `limit`; so is this one.
+        let mut lane_tmax = limit;
+        tracer.offer(shear, &p.tri(l), target, tmin, &mut lane_tmax, best);
+        if lane_tmax < tmax {
+            tmax = lane_tmax;
+        }
+    }
+    tmax
+}
