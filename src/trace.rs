@@ -232,9 +232,18 @@ impl Shear {
 ///   sign, and `safe_inverse(-0.0)` is negative while the component is
 ///   not: a ray along `-Vec3::Z` = (-0, -0, -1) missed everything in
 ///   obvhs's box test;
-/// - the inverse direction is `1 / d` clamped to 1e20 in magnitude, not
-///   `safe_inverse`'s 1 / `f32::EPSILON`, which would make the box test
-///   treat nearly axis-parallel rays as moving sideways faster than they do.
+/// - the inverse direction is `1 / d` clamped in magnitude to `2^(50 -
+///   e)`, where `2^e` is the scaled direction's size (about 2^-20 of the
+///   scene's rounding scale), not `safe_inverse`'s 1 / `f32::EPSILON`,
+///   which would make the box test treat nearly axis-parallel rays as
+///   moving sideways faster than they do. A clamped inverse shrinks the
+///   slab's `t` values, but a box that a hit lies in reaches past it by the
+///   padding, at least 1e-5 of the rounding scale, which the clamp turns
+///   into `t` of at least about 2^53, beyond any hit of a ray starting
+///   within a hundred scales of the scene (`t` under about 2^29); and
+///   `origin * inverse` stays under about 2^78, far from overflow. Until
+///   2026-12-05 the clamp was a fixed 1e20, too small for scenes under
+///   about 5e-8 across: some axis-parallel rays missed hits there.
 struct ScaledRay {
     ray: obvhs::ray::Ray,
     t_factor: f32,
@@ -247,10 +256,13 @@ impl ScaledRay {
         let scale = f32::from_bits(((shift + 127) as u32) << 23);
         let unscale = f32::from_bits(((127 - shift) as u32) << 23);
         let dir = ray.dir * scale + Vec3::ZERO;
+        // 2^50 times the inverse of the largest component's scale: see
+        // the type's notes.
+        let cap = f32::from_bits((((50 - dir_exponent).clamp(-126, 127) + 127) as u32) << 23);
         let inv = Vec3::select(
             dir.cmpeq(Vec3::ZERO),
-            Vec3::splat(1e20),
-            dir.recip().clamp(Vec3::splat(-1e20), Vec3::splat(1e20)),
+            Vec3::splat(cap),
+            dir.recip().clamp(Vec3::splat(-cap), Vec3::splat(cap)),
         );
         let ray = obvhs::ray::Ray {
             origin: ray.origin.into(),
