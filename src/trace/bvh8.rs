@@ -60,8 +60,9 @@ pub(super) const LEAF_MAX: u32 = 2 * LANES as u32;
 const LANES: usize = 4;
 
 /// Up to [`LANES`] triangles of a leaf, by corner, axis and lane, for one
-/// 128-bit test of all of them; unused lanes have NaN corners, which no
-/// ray hits.
+/// test of all of them (a leaf's two packs in one 256-bit pass in the
+/// AVX2 code, lane by lane in the portable code); unused lanes have NaN
+/// corners, which no ray hits, and the id [`NO_TRIANGLE`].
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub(super) struct Pack {
@@ -91,9 +92,9 @@ impl Pack {
     }
 }
 
-/// Entries of the traversal stack. A BVH whose traversal could need more
-/// (seven entries a level) is not built: the tracer keeps the other
-/// traversal then.
+/// Entries of the AVX2 traversal's stack. A BVH whose traversal could
+/// need more (seven entries a level) is walked by the portable code,
+/// whose stack grows.
 const STACK: usize = 256;
 
 /// A child reference with this bit is a leaf: `LEAF | [TWO] | first
