@@ -61,7 +61,7 @@ const LANES: usize = 4;
 
 /// Up to [`LANES`] triangles of a leaf, by corner, axis and lane, for one
 /// test of all of them (a leaf's two packs in one 256-bit pass in the
-/// AVX2 code, lane by lane in the portable code); unused lanes have NaN
+/// AVX2 code, one by one in the portable code); unused lanes have NaN
 /// corners, which no ray hits, and the id [`NO_TRIANGLE`].
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
@@ -357,77 +357,11 @@ pub(super) fn closest_hit(
     let tmin = scaled.ray.tmin;
     let mut best = NO_HIT;
     bvh.walk(&scaled.ray, stack, |pack, tmax| {
-        offer_pack(tracer, &shear, pack, target, tmin, tmax, &mut best);
+        for tri in pack.triangles() {
+            tracer.offer(&shear, &tri, target, tmin, tmax, &mut best);
+        }
     });
     tracer.hit(best, scaled.t_factor)
-}
-
-/// [`Tracer::offer`] of each triangle of `pack` in plain code: the
-/// watertight test of [`Shear::intersect`] lane by lane in loops the
-/// compiler can vectorise, with the same operations in the same order (so
-/// the same `t`, bit for bit); a lane with an edge function of zero is
-/// left to the scalar test, which decides it in f64.
-fn offer_pack(
-    tracer: &Tracer,
-    shear: &Shear,
-    pack: &Pack,
-    target: u32,
-    tmin: f32,
-    tmax: &mut f32,
-    best: &mut (f32, u32),
-) {
-    let [kx, ky, kz] = shear.k;
-    let [sx, sy, sz] = shear.s;
-    let o = shear.origin;
-    // A corner's sheared x and y, and its z scaled by the shear's sz.
-    let corner = |c: usize| {
-        let v = &pack.v[c];
-        let (mut x, mut y, mut z) = ([0.0f32; LANES], [0.0f32; LANES], [0.0f32; LANES]);
-        for lane in 0..LANES {
-            let pz = v[kz][lane] - o[kz];
-            x[lane] = (v[kx][lane] - o[kx]) - sx * pz;
-            y[lane] = (v[ky][lane] - o[ky]) - sy * pz;
-            z[lane] = sz * pz;
-        }
-        (x, y, z)
-    };
-    let (ax, ay, az) = corner(0);
-    let (bx, by, bz) = corner(1);
-    let (cx, cy, cz) = corner(2);
-    let limit = *tmax;
-    let mut t = [f32::INFINITY; LANES];
-    let mut on_edge = [false; LANES];
-    for lane in 0..LANES {
-        let u = cx[lane] * by[lane] - cy[lane] * bx[lane];
-        let v = ax[lane] * cy[lane] - ay[lane] * cx[lane];
-        let w = bx[lane] * ay[lane] - by[lane] * ax[lane];
-        on_edge[lane] = u == 0.0 || v == 0.0 || w == 0.0;
-        let miss = (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0);
-        let det = u + v + w;
-        let tt = u * az[lane] + v * bz[lane] + w * cz[lane];
-        let (tt, det) = if det < 0.0 { (-tt, -det) } else { (tt, det) };
-        let hit = tt / det;
-        if !miss && det != 0.0 && hit >= tmin && hit <= limit {
-            t[lane] = hit;
-        }
-    }
-    for lane in 0..LANES {
-        if pack.id[lane] == NO_TRIANGLE {
-            continue;
-        }
-        if on_edge[lane] {
-            // Tested within `limit`, as the other lanes were.
-            let mut lane_tmax = limit;
-            tracer.offer(shear, &pack.tri(lane), target, tmin, &mut lane_tmax, best);
-            *tmax = tmax.min(lane_tmax);
-        } else if t[lane] < f32::INFINITY && !tracer.passes_through(pack.object[lane], target) {
-            let (t, id) = (t[lane], pack.id[lane]);
-            if t < best.0 || (t == best.0 && id < best.1) {
-                *best = (t, id);
-            }
-            *tmax = tmax.min(t);
-        }
-    }
 }
 
 impl Bvh8 {
