@@ -23,10 +23,10 @@
 use glam::Vec3;
 use rand::{Rng, RngExt};
 
-use crate::geom::Aabb;
 use crate::geom::cell::{
     AngularBox, Cell, DIMS, PHI, THETA, angles_to_direction, direction_bounds, directions_meet,
 };
+use crate::geom::{Aabb, trig};
 use crate::random::uniform_point;
 use crate::scene::Scene;
 use crate::trace::Ray;
@@ -146,10 +146,8 @@ pub fn object_sample_aimed<R: Rng + ?Sized>(
         }
     }
     let theta = t0 + rng.random::<f32>() * (t1 - t0);
-    let (k0, k1) = (p0.cos(), p1.cos());
-    let phi = (k0 + rng.random::<f32>() * (k1 - k0))
-        .clamp(-1.0, 1.0)
-        .acos();
+    let (_, [k0, k1]) = trig::sin_cos([p0, p1]);
+    let phi = trig::acos(k0 + rng.random::<f32>() * (k1 - k0));
     let d = angles_to_direction(theta, phi.clamp(p0, p1));
     ray_into_target(&space, q, d, rng)
 }
@@ -228,11 +226,15 @@ impl AdaptiveSampler {
         rng: &mut R,
     ) -> Option<Ray> {
         let total = self.tries[0] + self.tries[1];
-        let rate = |k: usize| (self.accepted[k] as f64 + 1.0) / (self.tries[k] as f64 + 2.0);
         let k = if total < 16 {
             (total % 2) as usize
         } else {
-            let better = if rate(1) > rate(0) { 1 } else { 0 };
+            // Laplace estimates (accepted + 1) / (tries + 2) compared
+            // exactly, by cross-multiplying (no divisions).
+            let odds = |k: usize, l: usize| {
+                (u64::from(self.accepted[k]) + 1) * (u64::from(self.tries[l]) + 2)
+            };
+            let better = if odds(1, 0) > odds(0, 1) { 1 } else { 0 };
             if total.is_multiple_of(16) {
                 1 - better
             } else {

@@ -11,6 +11,7 @@ use super::builder_leaf::TracedSample;
 use super::{BuildParams, BuildStats, builder_edges, builder_leaf, builder_split, mix};
 use crate::bitset::ObjectSet;
 use crate::geom::cell::{Cell, DIMS, PHI, THETA, grid_value};
+use crate::geom::trig;
 use crate::sample::{cell_point, cell_ray};
 use crate::scene::Scene;
 use crate::trace::{Hit, Ray, Tracer};
@@ -428,7 +429,8 @@ fn forced_angular_split(cell: &Cell, params: &BuildParams, left: u32) -> (usize,
         return (THETA, half);
     }
     let (lo, hi) = (cell.lo[PHI], cell.hi[PHI]);
-    let mid = ((lo.cos() + hi.cos()) * 0.5).acos();
+    let (_, [c0, c1]) = trig::sin_cos([lo, hi]);
+    let mid = trig::acos((c0 + c1) * 0.5);
     let code = (((mid - lo) / (hi - lo)) * (1u32 << q) as f32).round() as u32;
     (PHI, code.clamp(1, (1 << q) - 1))
 }

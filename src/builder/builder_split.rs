@@ -25,6 +25,7 @@
 use super::SplitScore;
 use super::builder_node::{CachedRay, Ctx};
 use crate::geom::cell::{Cell, DIMS, PHI, THETA, grid_value};
+use crate::geom::trig;
 
 /// A chosen split.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -111,8 +112,8 @@ pub(super) fn best_split(ctx: &Ctx, cell: &Cell, cache: &[CachedRay]) -> Option<
             for i in 1..=n {
                 let f = i as f32 / (n + 1) as f32;
                 let v = if d == PHI {
-                    let (c0, c1) = (lo.cos(), hi.cos());
-                    (c0 + f * (c1 - c0)).clamp(-1.0, 1.0).acos()
+                    let (_, [c0, c1]) = trig::sin_cos([lo, hi]);
+                    trig::acos(c0 + f * (c1 - c0))
                 } else {
                     lo + f * (hi - lo)
                 };
@@ -133,7 +134,8 @@ pub(super) fn best_split(ctx: &Ctx, cell: &Cell, cache: &[CachedRay]) -> Option<
             let in_a = mins.partition_point(|&m| m < v);
             let in_b = seen - maxs.partition_point(|&m| m < v);
             let (ma, mb) = if d == PHI {
-                ((lo.cos() - v.cos()) as f64, (v.cos() - hi.cos()) as f64)
+                let (_, [cl, cv, ch]) = trig::sin_cos([lo, v, hi]);
+                ((cl - cv) as f64, (cv - ch) as f64)
             } else {
                 ((v - lo) as f64, (hi - v) as f64)
             };

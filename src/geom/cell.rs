@@ -20,7 +20,7 @@ use std::f32::consts::PI;
 
 use glam::Vec3;
 
-use super::Aabb;
+use super::{Aabb, trig};
 
 /// The number of dimensions of view space.
 pub const DIMS: usize = 5;
@@ -37,16 +37,14 @@ pub const DIM_NAMES: [&str; DIMS] = ["x", "y", "z", "theta", "phi"];
 /// The (theta, phi) of a direction (need not be unit length; must not be
 /// zero).
 pub fn direction_to_angles(d: Vec3) -> (f32, f32) {
-    let theta = d.y.atan2(d.x);
     // atan2, not acos(z / |d|): acos loses ~3.5e-4 rad next to the poles.
-    let phi = d.x.hypot(d.y).atan2(d.z);
+    let [theta, phi] = trig::atan2([d.y, trig::hypot(d.x, d.y)], [d.x, d.z]);
     (theta, phi)
 }
 
 /// The unit direction of (theta, phi).
 pub fn angles_to_direction(theta: f32, phi: f32) -> Vec3 {
-    let (st, ct) = theta.sin_cos();
-    let (sp, cp) = phi.sin_cos();
+    let ([st, sp], [ct, cp]) = trig::sin_cos([theta, phi]);
     Vec3::new(sp * ct, sp * st, cp)
 }
 
@@ -125,9 +123,9 @@ impl Cell {
         for d in 0..PHI {
             p[d] = self.lo[d] + u[d] * self.width(d);
         }
-        let (c0, c1) = (self.lo[PHI].cos(), self.hi[PHI].cos());
-        let c = (c0 + u[PHI] * (c1 - c0)).clamp(-1.0, 1.0);
-        p[PHI] = c.acos().clamp(self.lo[PHI], self.hi[PHI]);
+        let (_, [c0, c1]) = trig::sin_cos([self.lo[PHI], self.hi[PHI]]);
+        let c = c0 + u[PHI] * (c1 - c0);
+        p[PHI] = trig::acos(c).clamp(self.lo[PHI], self.hi[PHI]);
         p
     }
 
@@ -165,7 +163,7 @@ impl AngularBox {
         match self.theta {
             None => true,
             Some((t0, t1)) => {
-                let t = d.y.atan2(d.x);
+                let [t] = trig::atan2([d.y], [d.x]);
                 t >= t0 && t <= t1
             }
         }
@@ -180,12 +178,12 @@ impl Cell {
             cos_min: if self.hi[PHI] >= PI {
                 -1.0
             } else {
-                self.hi[PHI].cos()
+                trig::cos(self.hi[PHI])
             },
             cos_max: if self.lo[PHI] <= 0.0 {
                 1.0
             } else {
-                self.lo[PHI].cos()
+                trig::cos(self.lo[PHI])
             },
             theta: (!full).then_some((self.lo[THETA], self.hi[THETA])),
         }
@@ -219,19 +217,17 @@ pub fn direction_bounds(from: &Aabb, to: &Aabb) -> Option<(f32, f32, f32, f32)> 
             l.abs().min(h.abs())
         }
     };
-    let rho_min = nearest(lo.x, hi.x).hypot(nearest(lo.y, hi.y));
-    let rho_max = lo.x.abs().max(hi.x.abs()).hypot(lo.y.abs().max(hi.y.abs()));
-    // phi = atan2(rho, z) (exact next to the poles, unlike acos).
-    let phi_min = if hi.z >= 0.0 {
-        rho_min.atan2(hi.z)
-    } else {
-        rho_max.atan2(hi.z)
-    };
-    let phi_max = if lo.z <= 0.0 {
-        rho_min.atan2(lo.z)
-    } else {
-        rho_max.atan2(lo.z)
-    };
+    let rho_min = trig::hypot(nearest(lo.x, hi.x), nearest(lo.y, hi.y));
+    let rho_max = trig::hypot(lo.x.abs().max(hi.x.abs()), lo.y.abs().max(hi.y.abs()));
+    // phi = atan2(rho, z) (exact next to the poles, unlike acos) at the
+    // lowest and highest z, and theta at the xy rectangle's corners: one
+    // call, which computes the six angles side by side.
+    let rho_at_lo = if hi.z >= 0.0 { rho_min } else { rho_max };
+    let rho_at_hi = if lo.z <= 0.0 { rho_min } else { rho_max };
+    let [phi_min, phi_max, base, a1, a2, a3, _, _] = trig::atan2(
+        [rho_at_lo, rho_at_hi, lo.y, lo.y, hi.y, hi.y, 0.0, 0.0],
+        [hi.z, lo.z, lo.x, hi.x, lo.x, hi.x, 1.0, 1.0],
+    );
     let phi_lo = (phi_min - PAD).max(0.0);
     let phi_hi = (phi_max + PAD).min(PI);
     if contains_zero(lo.x, hi.x) && contains_zero(lo.y, hi.y) {
@@ -240,11 +236,9 @@ pub fn direction_bounds(from: &Aabb, to: &Aabb) -> Option<(f32, f32, f32, f32)> 
     // The rectangle misses the z axis: its corners bound theta, and the
     // arc they span is under pi. Find the arc by rotating so that the
     // first corner is at angle 0.
-    let corners = [(lo.x, lo.y), (hi.x, lo.y), (lo.x, hi.y), (hi.x, hi.y)];
-    let base = corners[0].1.atan2(corners[0].0);
     let (mut dmin, mut dmax) = (0.0f32, 0.0f32);
-    for &(x, y) in &corners[1..] {
-        let mut d = y.atan2(x) - base;
+    for a in [a1, a2, a3] {
+        let mut d = a - base;
         if d > PI {
             d -= 2.0 * PI;
         } else if d < -PI {

@@ -18,6 +18,7 @@ pub mod cell;
 pub mod frame;
 #[cfg(feature = "builder")]
 pub mod polygon;
+pub(crate) mod trig;
 
 pub use aabb::Aabb;
 #[cfg(feature = "builder")]
