@@ -637,6 +637,7 @@ impl Tracer {
 const CHUNK: usize = 256;
 
 mod bvh8;
+mod huge;
 
 /// How the tracer's BVH is built: obvhs's `medium_build` with the search
 /// distance of `slow_build` and ten times the reinsertion. On the rays of

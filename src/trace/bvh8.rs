@@ -45,6 +45,7 @@
 
 use obvhs::bvh2::Bvh2;
 
+use super::huge::HugeArray;
 use super::{Hit, NO_HIT, Ray, ScaledRay, Shear, Tracer, Tri};
 
 #[cfg(target_arch = "x86_64")]
@@ -134,8 +135,8 @@ impl Node {
 
 /// The eight-wide BVH and its triangles in leaf order.
 pub(super) struct Bvh8 {
-    nodes: Vec<Node>,
-    packs: Vec<Pack>,
+    nodes: HugeArray<Node>,
+    packs: HugeArray<Pack>,
     /// The root's reference (a node, or a leaf for a scene of few
     /// triangles).
     root: u32,
@@ -200,8 +201,8 @@ impl Bvh8 {
         if bvh.nodes[0].is_leaf() {
             let root = leaf(&bvh.nodes[0], &mut packs);
             return Self {
-                nodes,
-                packs,
+                nodes: HugeArray::from_slice(&nodes),
+                packs: HugeArray::from_slice(&packs),
                 root,
                 fits_stack: true,
             };
@@ -249,8 +250,8 @@ impl Bvh8 {
             nodes[slot] = node;
         }
         Self {
-            nodes,
-            packs,
+            nodes: HugeArray::from_slice(&nodes),
+            packs: HugeArray::from_slice(&packs),
             root: 0,
             fits_stack: (WIDTH - 1) * depth < STACK,
         }
