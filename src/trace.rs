@@ -363,10 +363,10 @@ impl std::fmt::Debug for Tracer {
 }
 
 impl Tracer {
-    /// Builds the BVH over every triangle of `scene` (obvhs's
-    /// `medium_build` with a wider search and more reinsertion, collapsed
-    /// to leaves of up to eight triangles and widened to eight children a
-    /// node: the best trace speed for the build time on the scenes
+    /// Builds the BVH over every triangle of `scene` (obvhs's PLOC build
+    /// with a wide search and reinsertion, widened to eight children a
+    /// node and leaves of up to eight triangles at the least surface area
+    /// cost: the best trace speed for the build time on the scenes
     /// measured in notes/trace.md).
     pub fn new(scene: &Scene) -> Self {
         let start = std::time::Instant::now();
@@ -390,8 +390,9 @@ impl Tracer {
                 obvhs::aabb::Aabb::new(a.min - pad, a.max + pad)
             })
             .collect();
-        // obvhs's binary BVH, collapsed to leaves of at most eight
-        // triangles (as its `build_bvh2` does), then widened (`Bvh8::new`).
+        // obvhs's binary BVH (leaves of one triangle), widened to eight
+        // children a node and leaves of up to eight triangles by
+        // `Bvh8::new`.
         let p = BVH_PRESET;
         let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
             p.ploc_search_distance,
@@ -401,13 +402,6 @@ impl Tracer {
             p.search_depth_threshold,
         );
         ReinsertionOptimizer::default().run(&mut bvh2, p.reinsertion_batch_ratio, None);
-        obvhs::bvh2::leaf_collapser::collapse(&mut bvh2, bvh8::LEAF_MAX, p.collapse_traversal_cost);
-        // As obvhs's `build_bvh2` does after a collapse.
-        ReinsertionOptimizer::default().run(
-            &mut bvh2,
-            p.reinsertion_batch_ratio * p.post_collapse_reinsertion_batch_ratio_multiplier,
-            None,
-        );
         let bvh = bvh8::Bvh8::new(&bvh2, &scene_tris);
         let wide = wide_cpu() && bvh.fits_stack();
         let see_through = (!scene.all_occlude()).then(|| {
@@ -639,11 +633,12 @@ const CHUNK: usize = 256;
 mod bvh8;
 mod huge;
 
-/// How the tracer's BVH is built: obvhs's `medium_build` with the search
-/// distance of `slow_build` and ten times the reinsertion. On the rays of
-/// a build it traces 5-15% faster than `medium_build` for 2.5-4 times the
-/// BVH's time (0.47 s for San Francisco's 268k triangles, 2.3 s for the
-/// forest's 767k: a small part of a build); notes/trace.md.
+/// How the tracer's binary BVH is built: obvhs's `medium_build` with the
+/// search distance of `slow_build` and ten times the reinsertion (its
+/// leaf collapse is not used: `Bvh8::new` decides the leaves). On the
+/// rays of a build it traces 5-15% faster than `medium_build` for 2.5-4
+/// times the BVH's time (0.47 s for San Francisco's 268k triangles, 2.3 s
+/// for the forest's 767k: a small part of a build); notes/trace.md.
 const BVH_PRESET: BvhBuildParams = BvhBuildParams {
     ploc_search_distance: obvhs::ploc::PlocSearchDistance::High,
     reinsertion_batch_ratio: 0.5,

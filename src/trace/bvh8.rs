@@ -6,11 +6,10 @@
 //! 2008, *Getting rid of packets*).
 //!
 //! The nodes are built from obvhs's binary BVH (its PLOC build and
-//! reinsertion), collapsed to leaves of at most [`LEAF_MAX`] triangles by
-//! obvhs's SAH collapse and widened by taking, eight times at most, the
-//! largest-area inner node among a node's children and putting its two
-//! children in its place. A leaf's triangles are stored in one or two
-//! [`Pack`]s of four (corners by axis and lane, as Embree's `Triangle4`).
+//! reinsertion) by the surface-area-optimal widening of Ylitie, Karras
+//! and Laine (2017), which also decides the leaves (at most [`LEAF_MAX`]
+//! triangles). A leaf's triangles are stored in one or two [`Pack`]s of
+//! four (corners by axis and lane, as Embree's `Triangle4`).
 //!
 //! Two traversals: on CPUs with AVX2, [`avx2`] tests a node's eight boxes
 //! in one 256-bit pass and a leaf's triangles in another, and visits the
@@ -56,6 +55,16 @@ const WIDTH: usize = 8;
 
 /// Triangles a leaf holds at most: two [`Pack`]s, tested together.
 pub(super) const LEAF_MAX: u32 = 2 * LANES as u32;
+
+/// The cost of visiting a node (its eight box tests), per unit of its
+/// area, in [`Bvh8::new`]'s surface area cost.
+const NODE_COST: f32 = 1.0;
+
+/// The cost of testing a leaf (one pass over its one or two packs), per
+/// unit of its area: in `perf` of San Francisco's builder rays, a leaf
+/// visit takes about 1.5 times a node visit. Costs from 1 to 4 trace
+/// within 3% of each other (notes/trace.md, step 7).
+const LEAF_COST: f32 = 1.5;
 
 /// Triangles a [`Pack`] holds.
 const LANES: usize = 4;
@@ -154,52 +163,142 @@ impl std::fmt::Debug for Bvh8 {
     }
 }
 
+/// Appends the packs of a leaf of triangles `prims` (scene indices, at
+/// most [`LEAF_MAX`]) to `packs`; its reference.
+fn push_leaf(prims: &[u32], scene_tris: &[Tri], packs: &mut Vec<Pack>) -> u32 {
+    let first = packs.len() as u32;
+    for chunk in prims.chunks(LANES) {
+        let mut pack = Pack::EMPTY;
+        for (lane, &i) in chunk.iter().enumerate() {
+            let t = &scene_tris[i as usize];
+            for (rows, corner) in pack.v.iter_mut().zip([t.a, t.b, t.c]) {
+                for (row, value) in rows.iter_mut().zip(corner) {
+                    row[lane] = value;
+                }
+            }
+            pack.id[lane] = t.id;
+            pack.object[lane] = t.object;
+        }
+        packs.push(pack);
+    }
+    let two = if packs.len() as u32 - first == 2 {
+        TWO
+    } else {
+        0
+    };
+    LEAF | two | first
+}
+
 impl Bvh8 {
     /// The wide BVH of `bvh` (a binary BVH over the padded boxes of
     /// `scene_tris`, in scene order, with at most [`LEAF_MAX`] triangles a
     /// leaf; at least one triangle, and at most
-    /// [`MAX_TRIANGLES`](crate::scene::MAX_TRIANGLES)).
+    /// [`MAX_TRIANGLES`](crate::scene::MAX_TRIANGLES)), shaped to the
+    /// least surface area cost by the dynamic programme of Ylitie, Karras
+    /// and Laine (2017, *Efficient incoherent ray traversal on GPUs
+    /// through compressed wide BVHs*): for each binary node, bottom up,
+    /// the cheapest way to stand as one leaf (at most [`LEAF_MAX`]
+    /// triangles, cost [`LEAF_COST`] times its area), as one wide node
+    /// ([`NODE_COST`] times its area plus its children's), or as up to
+    /// eight roots among its parent's children.
     ///
     /// # Panics
     /// When `bvh` has no triangles, more than that or larger leaves.
     pub(super) fn new(bvh: &Bvh2, scene_tris: &[Tri]) -> Self {
-        let leaf = |n: &obvhs::bvh2::node::Bvh2Node, packs: &mut Vec<Pack>| {
-            let first = packs.len() as u32;
-            let range = n.first_index as usize..(n.first_index + n.prim_count) as usize;
-            for chunk in bvh.primitive_indices[range].chunks(LANES) {
-                let mut pack = Pack::EMPTY;
-                for (lane, &i) in chunk.iter().enumerate() {
-                    let t = &scene_tris[i as usize];
-                    for (rows, corner) in pack.v.iter_mut().zip([t.a, t.b, t.c]) {
-                        for (row, value) in rows.iter_mut().zip(corner) {
-                            row[lane] = value;
-                        }
-                    }
-                    pack.id[lane] = t.id;
-                    pack.object[lane] = t.object;
-                }
-                packs.push(pack);
-            }
-            let two = if packs.len() as u32 - first == 2 {
-                TWO
-            } else {
-                0
-            };
-            LEAF | two | first
-        };
+        let n = bvh.nodes.len();
         assert!(
-            !bvh.nodes.is_empty() && bvh.primitive_indices.len() <= FIRST_MASK as usize,
+            n > 0 && bvh.primitive_indices.len() <= FIRST_MASK as usize,
             "the tracer takes 1 to 2^30 triangles, not {}",
             bvh.primitive_indices.len()
         );
-        assert!(
-            bvh.nodes.iter().all(|n| n.prim_count <= LEAF_MAX),
-            "leaves of at most {LEAF_MAX} triangles"
-        );
+        let mut order = Vec::with_capacity(n);
+        let mut todo = vec![0usize];
+        while let Some(i) = todo.pop() {
+            order.push(i);
+            let node = &bvh.nodes[i];
+            if !node.is_leaf() {
+                todo.push(node.first_index as usize);
+                todo.push(node.first_index as usize + 1);
+            }
+        }
+        // cost[i][j - 1]: node i's subtree as at most j roots; split[i][j -
+        // 1]: 0 for one root, else the roots its left child gets.
+        let mut cost = vec![[f32::INFINITY; WIDTH]; n];
+        let mut split = vec![[0u8; WIDTH]; n];
+        let mut prims = vec![0u32; n];
+        let mut as_leaf = vec![false; n];
+        let mut wide_split = vec![0u8; n];
+        for &i in order.iter().rev() {
+            let node = &bvh.nodes[i];
+            let area = node.aabb().half_area();
+            if node.is_leaf() {
+                assert!(
+                    node.prim_count <= LEAF_MAX,
+                    "leaves of at most {LEAF_MAX} triangles"
+                );
+                prims[i] = node.prim_count;
+                as_leaf[i] = true;
+                cost[i] = [area * LEAF_COST; WIDTH];
+                continue;
+            }
+            let (l, r) = (node.first_index as usize, node.first_index as usize + 1);
+            prims[i] = prims[l] + prims[r];
+            let (cl, cr) = (cost[l], cost[r]);
+            let pair = |j: usize| {
+                (1..j)
+                    .map(|k| (cl[k - 1] + cr[j - k - 1], k as u8))
+                    .fold((f32::INFINITY, 0u8), |a, b| if b.0 < a.0 { b } else { a })
+            };
+            let (children, k) = pair(WIDTH);
+            let wide = area * NODE_COST + children;
+            let leaf = if prims[i] <= LEAF_MAX {
+                area * LEAF_COST
+            } else {
+                f32::INFINITY
+            };
+            let one = if leaf <= wide {
+                as_leaf[i] = true;
+                leaf
+            } else {
+                wide_split[i] = k;
+                wide
+            };
+            cost[i][0] = one;
+            for j in 2..=WIDTH {
+                let (c, k) = pair(j);
+                (cost[i][j - 1], split[i][j - 1]) = if c < one { (c, k) } else { (one, 0) };
+            }
+        }
+        // The binary nodes that stand as roots when node i gets j.
+        fn roots(bvh: &Bvh2, split: &[[u8; WIDTH]], i: usize, j: usize, out: &mut Vec<usize>) {
+            let k = split[i][j - 1] as usize;
+            if k == 0 {
+                out.push(i);
+            } else {
+                let l = bvh.nodes[i].first_index as usize;
+                roots(bvh, split, l, k, out);
+                roots(bvh, split, l + 1, j - k, out);
+            }
+        }
+        let subtree_prims = |i: usize| {
+            let mut out = Vec::new();
+            let mut todo = vec![i];
+            while let Some(m) = todo.pop() {
+                let node = &bvh.nodes[m];
+                if node.is_leaf() {
+                    let f = node.first_index as usize;
+                    out.extend_from_slice(&bvh.primitive_indices[f..f + node.prim_count as usize]);
+                } else {
+                    todo.push(node.first_index as usize + 1);
+                    todo.push(node.first_index as usize);
+                }
+            }
+            out
+        };
         let mut packs = Vec::with_capacity(bvh.primitive_indices.len().div_ceil(LANES));
         let mut nodes = Vec::new();
-        if bvh.nodes[0].is_leaf() {
-            let root = leaf(&bvh.nodes[0], &mut packs);
+        if as_leaf[0] {
+            let root = push_leaf(&subtree_prims(0), scene_tris, &mut packs);
             return Self {
                 nodes: HugeArray::from_slice(&nodes),
                 packs: HugeArray::from_slice(&packs),
@@ -207,43 +306,30 @@ impl Bvh8 {
                 fits_stack: true,
             };
         }
-        // (binary node, wide node to fill, its depth)
         let mut work = vec![(0usize, 0usize, 1usize)];
         nodes.push(Node::EMPTY);
         let mut depth = 1;
+        let mut kids = Vec::with_capacity(WIDTH);
         while let Some((b, slot, d)) = work.pop() {
             depth = depth.max(d);
-            let first = bvh.nodes[b].first_index as usize;
-            let mut kids = vec![first, first + 1];
-            while kids.len() < WIDTH {
-                let widest = kids
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, k)| !bvh.nodes[**k].is_leaf())
-                    .max_by(|a, b| {
-                        let area = |k: usize| bvh.nodes[k].aabb().half_area();
-                        area(*a.1).total_cmp(&area(*b.1))
-                    })
-                    .map(|(i, _)| i);
-                let Some(i) = widest else { break };
-                let f = bvh.nodes[kids[i]].first_index as usize;
-                kids[i] = f;
-                kids.push(f + 1);
-            }
+            let l = bvh.nodes[b].first_index as usize;
+            let k = wide_split[b] as usize;
+            kids.clear();
+            roots(bvh, &split, l, k, &mut kids);
+            roots(bvh, &split, l + 1, WIDTH - k, &mut kids);
             let mut node = Node::EMPTY;
-            for (lane, &k) in kids.iter().enumerate() {
-                let n = &bvh.nodes[k];
-                let bounds = n.aabb();
+            for (lane, &m) in kids.iter().enumerate() {
+                let bounds = bvh.nodes[m].aabb();
                 for axis in 0..3 {
                     node.lo[axis][lane] = bounds.min[axis];
                     node.hi[axis][lane] = bounds.max[axis];
                 }
-                node.child[lane] = if n.is_leaf() {
-                    leaf(n, &mut packs)
+                node.child[lane] = if as_leaf[m] {
+                    push_leaf(&subtree_prims(m), scene_tris, &mut packs)
                 } else {
                     let at = nodes.len();
                     nodes.push(Node::EMPTY);
-                    work.push((k, at, d + 1));
+                    work.push((m, at, d + 1));
                     at as u32
                 };
             }
