@@ -382,7 +382,7 @@ mod tests {
             seed ^= seed << 5;
             seed as f32 / u32::MAX as f32
         };
-        for _ in 0..300 {
+        for _ in 0..1000 {
             let mut b = || {
                 let c = Vec3::new(rnd(), rnd(), rnd()) * 10.0 - 5.0;
                 let s = Vec3::new(rnd(), rnd(), rnd()) * 3.0;
@@ -390,10 +390,29 @@ mod tests {
             };
             let (from, to) = (b(), b());
             let bounds = direction_bounds(&from, &to);
-            for _ in 0..200 {
-                let p = from.lerp(Vec3::new(rnd(), rnd(), rnd()));
-                let q = to.lerp(Vec3::new(rnd(), rnd(), rnd()));
-                let (t, ph) = direction_to_angles(q - p);
+            // Random points, and every pair of corners (where the extreme
+            // directions are).
+            let corner = |b: &Aabb, k: usize| {
+                Vec3::new(
+                    [b.min.x, b.max.x][k & 1],
+                    [b.min.y, b.max.y][(k >> 1) & 1],
+                    [b.min.z, b.max.z][k >> 2],
+                )
+            };
+            for k in 0..264 {
+                let (p, q) = if k < 64 {
+                    (corner(&from, k % 8), corner(&to, k / 8))
+                } else {
+                    (
+                        from.lerp(Vec3::new(rnd(), rnd(), rnd())),
+                        to.lerp(Vec3::new(rnd(), rnd(), rnd())),
+                    )
+                };
+                // The angles in f64 (libm's), not by the f32 polynomials
+                // that the bounds use.
+                let v = (q - p).as_dvec3();
+                let t = v.y.atan2(v.x) as f32;
+                let ph = v.x.hypot(v.y).atan2(v.z) as f32;
                 let mut cell = Cell::all_directions(from);
                 cell.lo[THETA] = t;
                 cell.hi[THETA] = t;
