@@ -247,6 +247,13 @@ pub fn direction_bounds(from: &Aabb, to: &Aabb) -> Option<(f32, f32, f32, f32)> 
         dmin = dmin.min(d);
         dmax = dmax.max(d);
     }
+    // The arc is under pi, but two corners nearly opposite each other
+    // (a rectangle thin across the axis's side and long along it) can
+    // round to exactly pi apart, or past it, and the arc would be taken
+    // the wrong way round: then every theta.
+    if dmax - dmin >= PI - PAD {
+        return Some((-PI, PI, phi_lo, phi_hi));
+    }
     let wrap = |t: f32| {
         if t > PI {
             t - 2.0 * PI
@@ -422,6 +429,46 @@ mod tests {
                     directions_meet(&cell, bounds),
                     "{from:?} {to:?} {t} {ph} {bounds:?}"
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn direction_bounds_of_a_rectangle_thin_beside_the_axis() {
+        // x = -1e-8, y from -1 to 1: the corners' theta round to exactly
+        // -pi/2 and pi/2, pi apart, and the arc was taken on the wrong
+        // side (theta in [-pi/2, pi/2], where every direction here has x <
+        // 0; found by a review's fuzz). Every orientation.
+        let from = Aabb::new(Vec3::ZERO, Vec3::ZERO);
+        for (lo, hi, d) in [
+            (
+                Vec3::new(-1e-8, -1.0, 0.0),
+                Vec3::new(-1e-8, 1.0, 0.0),
+                -Vec3::X,
+            ),
+            (
+                Vec3::new(1e-8, -1.0, 0.0),
+                Vec3::new(1e-8, 1.0, 0.0),
+                Vec3::X,
+            ),
+            (
+                Vec3::new(-1.0, -1e-8, 0.0),
+                Vec3::new(1.0, -1e-8, 0.0),
+                -Vec3::Y,
+            ),
+            (
+                Vec3::new(-1.0, 1e-8, 0.0),
+                Vec3::new(1.0, 1e-8, 0.0),
+                Vec3::Y,
+            ),
+        ] {
+            let bounds = direction_bounds(&from, &Aabb::new(lo, hi));
+            for v in [d, lo, hi] {
+                let (t, ph) = direction_to_angles(v);
+                let mut cell = Cell::all_directions(from);
+                (cell.lo[THETA], cell.hi[THETA]) = (t, t);
+                (cell.lo[PHI], cell.hi[PHI]) = (ph, ph);
+                assert!(directions_meet(&cell, bounds), "{lo} {hi} {v}: {bounds:?}");
             }
         }
     }
