@@ -8,9 +8,9 @@
 //! counts where transparent huge pages are set to `madvise`, Debian's
 //! default) before the pages are first touched, as Embree does for its
 //! BVHs (seen here: an Embree build of San Francisco holds 106 MB of
-//! `AnonHugePages`). Elsewhere, or where the kernel declines, the array is
-//! an ordinary allocation and nothing else changes (notes/trace.md, step
-//! 6).
+//! `AnonHugePages`). Off Linux, or below 1 MiB, the array is an ordinary
+//! allocation; where the kernel declines the advice, the mapping has
+//! ordinary pages; nothing else changes (notes/trace.md, step 6).
 
 use std::alloc::{self, Layout};
 use std::ptr::NonNull;
