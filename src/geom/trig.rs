@@ -21,9 +21,10 @@
 //! within 4e-7 rad, `sin` and `cos` within 1e-7 for arguments in `[-2 pi,
 //! 2 pi]` (the angles of view space and their sums; the quadrant is wrong
 //! past 2^20). Scene coordinates are at most 1e14 and cell angles within
-//! `[-pi, pi]`. Every caller pads its intervals by far
-//! more (`direction_bounds` by 1e-4 rad) or uses the angles only to draw
-//! samples.
+//! `[-pi, pi]`. `direction_bounds` pads its intervals by far more (1e-4
+//! rad); the other callers draw samples and place them in cells, where an
+//! angle this far off only moves a sample lying on a cell's boundary to
+//! the cell beside it.
 
 use std::f32::consts::{FRAC_2_PI, FRAC_PI_2, FRAC_PI_4, PI};
 
