@@ -147,7 +147,7 @@ enum Command {
     /// time. Writes DIR/index.html (tables and SVG plots), DIR/report.json
     /// (every figure) and DIR/report.md.
     Report(report::ReportArgs),
-    /// Generate a procedural test scene and write it as OBJ.
+    /// Generate a procedural test scene (or tile a model) and write it as OBJ.
     ///
     /// Kinds: apartment (two furnished rooms joined by a door, ~170 objects,
     /// ~3,000 triangles), office (twelve offices along a corridor), city
@@ -156,7 +156,8 @@ enum Command {
     /// ventilation grating and many internal parts), thicket (a dense
     /// forest: 256 trees 2.5 m apart, crowns of leaf triangles down to half
     /// a metre). The same kind, seed and replication always give the same
-    /// file.
+    /// file. `--tile MODEL --replicate N` instead copies a model N times
+    /// side by side on the ground: a bigger world made of a real one.
     Scene(scene::SceneArgs),
     /// Time the project's ray tracer: rays per second on random rays or
     /// on the rays a real build traces.

@@ -405,10 +405,60 @@ impl Scene {
     /// where a loaded model would be.
     pub fn translated(&self, offset: DVec3, name: &Path) -> Result<Scene, SceneError> {
         let mut b = SceneBuilder::new(self.format);
+        self.copy_into(&mut b, offset, 0, name)?;
+        Ok(b.finish(name)?.with_up(self.frame.up))
+    }
+
+    /// `copies` copies of the scene side by side on the ground (a square
+    /// grid of `ceil(sqrt(copies))` columns in the local x and y, the up
+    /// axis kept, a gap of a tenth of the larger horizontal size between
+    /// copies, the first copy where the scene is): a bigger world made of
+    /// a real one, for measuring how builds scale (`vis5d scene --tile`).
+    /// Copy `k` > 0 of an object is named `name#k`, and its id, when it
+    /// has one, `id#k`; flags are kept. `name` names the result in errors.
+    ///
+    /// # Errors
+    /// When a copy's coordinates are not finite (a scene near the f64
+    /// range, copied far enough), or the result has more than
+    /// [`MAX_TRIANGLES`] triangles.
+    pub fn tiled(&self, copies: u32, name: &Path) -> Result<Scene, SceneError> {
+        let copies = copies.max(1);
+        let size = self.bounds.size().as_dvec3();
+        let gap = 0.1 * size.x.max(size.y);
+        let cols = f64::from(copies).sqrt().ceil() as u32;
+        let mut b = SceneBuilder::new(self.format);
+        for k in 0..copies {
+            let (col, row) = (f64::from(k % cols), f64::from(k / cols));
+            // In the local frame (z up), turned to the world's axes.
+            let shift = DVec3::new(col * (size.x + gap), row * (size.y + gap), 0.0);
+            let shift = self.frame.dir_to_world(shift.as_vec3()).as_dvec3();
+            self.copy_into(&mut b, shift, k, name)?;
+        }
+        Ok(b.finish(name)?.with_up(self.frame.up))
+    }
+
+    /// Adds every object to `b`, moved by `shift` (world units), with `#k`
+    /// after each name and id unless `k` is 0. `name` names the scene in
+    /// errors.
+    fn copy_into(
+        &self,
+        b: &mut SceneBuilder,
+        shift: DVec3,
+        k: u32,
+        name: &Path,
+    ) -> Result<(), SceneError> {
         for (i, o) in self.objects.iter().enumerate() {
-            b.begin_object_with(o.name.clone(), o.id.clone(), o.flags);
+            let (copy_name, id) = if k == 0 {
+                (o.name.clone(), o.id.clone())
+            } else {
+                (
+                    format!("{}#{k}", o.name),
+                    o.id.as_ref().map(|id| format!("{id}#{k}")),
+                )
+            };
+            b.begin_object_with(copy_name, id, o.flags);
             for t in self.object_triangles(i) {
-                b.push_triangle_f64(t.map(|v| self.frame.to_world(v) + offset))
+                b.push_triangle_f64(t.map(|v| self.frame.to_world(v) + shift))
                     .map_err(|bad| SceneError::NonFinite {
                         path: name.to_owned(),
                         line: 0,
@@ -417,7 +467,7 @@ impl Scene {
                     })?;
             }
         }
-        Ok(b.finish(name)?.with_up(self.frame.up))
+        Ok(())
     }
 
     /// The same scene with world axis `up` as its up axis (`vis5d --up`):
@@ -790,6 +840,65 @@ mod tests {
             assert_eq!(back.fingerprint(), far.fingerprint(), "{offset}");
             assert_ne!(far.fingerprint(), near.fingerprint());
         }
+    }
+
+    #[test]
+    fn tiles_are_copies_side_by_side_on_the_ground() {
+        // The apartment with y up (its z turned into y), tiled five times:
+        // three columns on the ground (world x and z), two rows.
+        let one = procedural::generate(procedural::SceneKind::Apartment, 1, 1).with_up(Up::Y);
+        let tiled = one.tiled(5, Path::new("tiled.obj")).unwrap();
+        tiled.validate().unwrap();
+        assert_eq!(tiled.frame().up, Up::Y);
+        let n = one.objects().len();
+        assert_eq!(tiled.objects().len(), 5 * n);
+        assert_eq!(tiled.triangles().len(), 5 * one.triangles().len());
+        let size = one.bounds().size();
+        let gap = 0.1 * size.x.max(size.y);
+        let world = |s: &Scene, v: Vec3| s.frame().to_world(v);
+        for k in 0..5 {
+            let (col, row) = ((k % 3) as f32, (k / 3) as f32);
+            // Local x and y are the ground (local z is up).
+            let shift = DVec3::new(
+                f64::from(col * (size.x + gap)),
+                f64::from(row * (size.y + gap)),
+                0.0,
+            );
+            for (i, o) in one.objects().iter().enumerate() {
+                let c = &tiled.objects()[k * n + i];
+                let name = if k == 0 {
+                    o.name.clone()
+                } else {
+                    format!("{}#{k}", o.name)
+                };
+                assert_eq!(c.name, name);
+                assert_eq!(c.flags, o.flags);
+                for (a, b) in one
+                    .object_triangles(i)
+                    .iter()
+                    .zip(tiled.object_triangles(k * n + i))
+                {
+                    for (p, q) in a.iter().zip(b) {
+                        let moved = one.frame().to_world(*p)
+                            + one.frame().dir_to_world(shift.as_vec3()).as_dvec3();
+                        assert!((moved - world(&tiled, *q)).abs().max_element() < 1e-3);
+                    }
+                }
+            }
+            // The up axis is untouched: every copy spans the same heights.
+            let copy = tiled.objects()[k * n..(k + 1) * n]
+                .iter()
+                .fold(Aabb::EMPTY, |b, o| b.union(&o.bounds));
+            assert!((copy.min.z - tiled.bounds().min.z).abs() < 1e-3);
+        }
+        // One copy is the scene itself; zero copies are one.
+        let same = one.tiled(1, Path::new("one.obj")).unwrap();
+        assert_eq!(same.triangles(), one.triangles());
+        assert_eq!(same.fingerprint(), one.fingerprint());
+        assert_eq!(
+            one.tiled(0, Path::new("zero.obj")).unwrap().objects().len(),
+            n
+        );
     }
 
     #[test]

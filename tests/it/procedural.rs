@@ -100,3 +100,36 @@ fn the_machine_is_closed_but_for_its_grating() {
     assert!(through > 0, "nothing inside is visible through the grating");
     assert!(through < n / 20, "{through} of {n} rays got inside");
 }
+
+/// `vis5d scene --tile`: a committed scene copied four times, read back
+/// with every copy's objects (named `name#k`) and four times the
+/// triangles; a kind and `--tile` together are refused.
+#[test]
+fn a_model_tiles_into_a_bigger_world() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_path = dir.path().join("city4.obj");
+    let out_str = out_path.to_str().unwrap();
+    let city = crate::committed("city.obj");
+    let city = city.to_str().unwrap();
+    let out = crate::vis5d(&["scene", "--tile", city, "--replicate", "4", "-o", out_str]);
+    assert!(out.status.success(), "{}", crate::text(&out.stderr));
+    let one = scene::load(city).unwrap();
+    let four = scene::load(&out_path).unwrap();
+    assert_eq!(four.objects().len(), 4 * one.objects().len());
+    assert_eq!(four.triangles().len(), 4 * one.triangles().len());
+    let name = &one.objects()[0].name;
+    for k in 1..4 {
+        let copy = format!("{name}#{k}");
+        assert!(four.objects().iter().any(|o| o.name == copy), "{copy}");
+    }
+    // Side by side: the tiled box is about twice as wide on the ground,
+    // as high as one copy.
+    let (a, b) = (one.bounds().size(), four.bounds().size());
+    assert!(
+        b.x > 2.0 * a.x && b.y > 2.0 * a.y && (b.z - a.z).abs() < 1e-3,
+        "{a} {b}"
+    );
+    let out = crate::vis5d(&["scene", "city", "--tile", city, "-o", out_str]);
+    assert!(!out.status.success());
+    assert!(crate::text(&out.stderr).contains("cannot be used with"));
+}
