@@ -23,6 +23,7 @@ pub fn uniform_direction<R: Rng + ?Sized>(rng: &mut R) -> Vec3 {
 }
 
 /// A point uniform in the box `b`, from three draws (x, y, z).
+#[inline(always)]
 pub fn uniform_point<R: Rng + ?Sized>(rng: &mut R, b: &Aabb) -> Vec3 {
     // Vec3::new evaluates its arguments left to right: x, y, z.
     b.lerp(Vec3::new(rng.random(), rng.random(), rng.random()))

@@ -64,6 +64,7 @@ pub fn object_sample<R: Rng + ?Sized>(
 }
 
 /// [`object_sample`] with the cell's angular box test computed once.
+#[inline(always)]
 fn object_sample_in<R: Rng + ?Sized>(
     scene: &Scene,
     cell: &Cell,
@@ -109,6 +110,7 @@ pub fn object_sample_from_target<R: Rng + ?Sized>(
 /// cell that reaches the surface can be drawn), but it is rarely
 /// rejected where both other kinds nearly always are: objects that only
 /// the edge of a narrow angular box reaches.
+#[inline(always)]
 pub fn object_sample_aimed<R: Rng + ?Sized>(
     scene: &Scene,
     cell: &Cell,
@@ -154,6 +156,7 @@ pub fn object_sample_aimed<R: Rng + ?Sized>(
 
 /// The segment from a point p uniform on the part of the line `q - t d`
 /// (t > 0) inside `space` to q, or `None` when the line misses the box.
+#[inline(always)]
 fn ray_into_target<R: Rng + ?Sized>(space: &Aabb, q: Vec3, d: Vec3, rng: &mut R) -> Option<Ray> {
     // Where q - t d is inside the box, t >= 0 (slabs).
     let (mut t0, mut t1) = (0.0f32, f32::INFINITY);
@@ -218,6 +221,7 @@ impl AdaptiveSampler {
     }
 
     /// One draw: a ray, or `None` when it was rejected.
+    #[inline(always)]
     pub fn draw<R: Rng + ?Sized>(
         &mut self,
         scene: &Scene,

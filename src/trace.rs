@@ -432,6 +432,15 @@ impl Tracer {
         }
     }
 
+    /// Whether rays take the traversal compiled for AVX2 and FMA: where
+    /// the CPU has them (unless `VIS5D_NARROW_TRACE` is set, or the tracer
+    /// was made [portable](Tracer::with_portable_code)) and the BVH is
+    /// shallow enough for its stack. The builder's sampling takes its
+    /// code compiled for them on the same condition.
+    pub fn is_wide(&self) -> bool {
+        self.wide
+    }
+
     /// How long [`Tracer::new`] took.
     pub fn build_time(&self) -> Duration {
         self.build_time

@@ -43,6 +43,7 @@ pub fn direction_to_angles(d: Vec3) -> (f32, f32) {
 }
 
 /// The unit direction of (theta, phi).
+#[inline(always)]
 pub fn angles_to_direction(theta: f32, phi: f32) -> Vec3 {
     let ([st, sp], [ct, cp]) = trig::sin_cos([theta, phi]);
     Vec3::new(sp * ct, sp * st, cp)
@@ -155,6 +156,7 @@ pub struct AngularBox {
 
 impl AngularBox {
     /// Whether direction `d` (non-zero) lies in the box.
+    #[inline(always)]
     pub fn contains(&self, d: Vec3) -> bool {
         let c = d.z / d.length();
         if c < self.cos_min || c > self.cos_max {
@@ -201,6 +203,7 @@ impl Cell {
 /// xy distance, which vary independently over M, so its extremes are
 /// exact. Intervals are widened by 1e-4 rad against rounding; phi is
 /// computed as `atan2(rho, z)`, accurate next to the poles.
+#[inline(always)]
 pub fn direction_bounds(from: &Aabb, to: &Aabb) -> Option<(f32, f32, f32, f32)> {
     const PAD: f32 = 1e-4;
     let lo = to.min - from.max;

@@ -586,6 +586,7 @@ impl Scene {
     ///
     /// # Panics
     /// When the object is empty ([`Object::is_empty`]): it has no surface.
+    #[inline(always)]
     pub fn sample_surface<R: Rng + ?Sized>(&self, object: usize, rng: &mut R) -> Vec3 {
         let o = &self.objects[object];
         assert!(!o.is_empty(), "object {object} has no surface to sample");

@@ -169,6 +169,29 @@ fn same_seed_same_tree_whatever_the_thread_count() {
     assert!(reseeded != one, "the seed changes nothing");
 }
 
+/// The builder's sampling and tracing run in code compiled for AVX2 and
+/// FMA where the CPU has them (`Tracer::is_wide`), else in portable code:
+/// the same operations in the same order, so the same tree and the same
+/// rays, whichever ran.
+#[test]
+fn the_wide_and_the_portable_code_build_the_same_tree() {
+    for name in ["machine.obj", "apartment.obj"] {
+        let s = scene::load(crate::committed(name)).unwrap();
+        let params = BuildParams {
+            max_depth: 8,
+            ..BuildParams::default()
+        };
+        let wide = Tracer::new(&s);
+        let portable = Tracer::new(&s).with_portable_code();
+        assert!(!portable.is_wide());
+        let (a, sa) = build(&s, &wide, &params, &|_| {}).unwrap();
+        let (b, sb) = build(&s, &portable, &params, &|_| {}).unwrap();
+        assert!(a == b, "{name}: the trees differ");
+        assert_eq!(sa.rays(), sb.rays(), "{name}");
+        assert_eq!(sa.rejected, sb.rejected, "{name}");
+    }
+}
+
 #[test]
 fn spatial_only_with_angular_leaves() {
     let s = scene::load(crate::committed("apartment.obj")).unwrap();
