@@ -123,12 +123,15 @@ pub(super) struct NodeState {
 }
 
 impl NodeState {
-    /// The root's state.
-    pub const ROOT: NodeState = NodeState {
-        depth: 0,
-        angular_left: None,
-        fewest_dropped: u32::MAX,
-    };
+    /// The state of a root of the fixed top's subtrees, at `depth`
+    /// ([`super::BuildParams::top_levels`]; 0 for the one root).
+    pub const fn top(depth: u32) -> NodeState {
+        NodeState {
+            depth,
+            angular_left: None,
+            fewest_dropped: u32::MAX,
+        }
+    }
 }
 
 /// A built subtree, before flattening into preorder.

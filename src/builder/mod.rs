@@ -43,11 +43,17 @@ mod builder_edges;
 mod builder_leaf;
 mod builder_node;
 mod builder_split;
+mod builder_top;
 mod builder_verify;
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
 
+use rayon::prelude::*;
+
+pub use builder_top::{
+    GraftError, MAX_TOP_LEVELS, MergeError, deal, graft, merge, subtree_cells, subtree_costs,
+};
 pub use builder_verify::{PixelError, VerifyParams, pixel_error};
 
 use crate::bitset::ObjectSet;
@@ -186,6 +192,14 @@ pub struct BuildParams {
     /// rather than running for hours or out of memory. Default 2^20; the
     /// trees measured have 2k-7k nodes (notes/build.md).
     pub max_nodes: u64,
+    /// Cuts made before any ray is cast (0 to [`MAX_TOP_LEVELS`]): the
+    /// root is halved this many times across its longest spatial axis,
+    /// and each of the 2^k cells is built as a root of its own (every
+    /// object a candidate, no rays inherited), so that shards of a build
+    /// can make them apart and [`graft`] them into this very tree
+    /// (`vis5d build --shard`, `vis5d merge`; notes/scale.md). 0 (the
+    /// default): one root, split by E(A, B) like every other node.
+    pub top_levels: u32,
 }
 
 impl Default for BuildParams {
@@ -219,6 +233,7 @@ impl Default for BuildParams {
             view_grow: 0.0,
             seed: 1,
             max_nodes: 1 << 20,
+            top_levels: 0,
         }
     }
 }
@@ -361,6 +376,13 @@ impl BuildParams {
                 &deepest,
             ));
         }
+        if self.top_levels > MAX_TOP_LEVELS.min(self.max_depth) {
+            return Err(bad(
+                "top_levels",
+                &format!("at most {MAX_TOP_LEVELS} and at most max_depth"),
+                &self.top_levels,
+            ));
+        }
         if !(0.0..=100.0).contains(&self.view_grow) {
             return Err(bad("view_grow", "in [0, 100] (diagonals)", &self.view_grow));
         }
@@ -452,7 +474,13 @@ impl BuildParams {
             format!("edge_rays={}", self.edge_rays),
             format!("inherit_samples={}", self.inherit_samples),
         ];
-        lines.join("\n") + "\n"
+        let mut text = lines.join("\n") + "\n";
+        // Only where used, so that the files of builds without a fixed top
+        // keep their bytes.
+        if self.top_levels > 0 {
+            text += &format!("top_levels={}\n", self.top_levels);
+        }
+        text
     }
 }
 
@@ -615,7 +643,25 @@ pub fn build(
     params: &BuildParams,
     progress: &(dyn Fn(f64) + Sync),
 ) -> Result<(VisTree, BuildStats), BuildError> {
-    build_recording(scene, tracer, params, progress, None)
+    let (parts, stats) = build_recording(scene, tracer, params, None, progress, None)?;
+    let trees: Vec<VisTree> = parts.into_iter().map(|(_, t)| t).collect();
+    let root = Cell::all_directions(params.root_box(scene));
+    let tree = graft(root, params.top_levels, params.grid_bits, &trees)
+        .expect("the subtrees were built for their places");
+    Ok((tree, stats))
+}
+
+/// The subtrees of the fixed top that shard `shard` of `shards` builds
+/// (indices in [`subtree_cells`]' order), for `scene` and `params`.
+pub fn shard_subtrees(scene: &Scene, params: &BuildParams, shard: u32, shards: u32) -> Vec<u32> {
+    let root = Cell::all_directions(params.root_box(scene));
+    let cells = subtree_cells(root, params.top_levels, params.grid_bits);
+    deal(&subtree_costs(scene, &cells), shards)
+        .into_iter()
+        .enumerate()
+        .filter(|&(_, s)| s == shard)
+        .map(|(i, _)| i as u32)
+        .collect()
 }
 
 /// The first `n` rays a build of `scene` with `params` traces (cell rays,
@@ -633,20 +679,98 @@ pub fn record_rays(
     progress: &(dyn Fn(f64) + Sync),
 ) -> Result<Vec<Ray>, BuildError> {
     let log = crate::raylog::RayLog::new(n);
-    build_recording(scene, tracer, params, progress, Some(&log))?;
+    build_recording(scene, tracer, params, None, progress, Some(&log))?;
     Ok(log.into_rays())
 }
 
+/// The subtrees of the fixed top that `shard` (shard, shards) builds, or
+/// all of them, each with its index and its tree.
 fn build_recording(
     scene: &Scene,
     tracer: &Tracer,
     params: &BuildParams,
+    shard: Option<(u32, u32)>,
     progress: &(dyn Fn(f64) + Sync),
     record: Option<&crate::raylog::RayLog>,
-) -> Result<(VisTree, BuildStats), BuildError> {
+) -> Result<(Vec<(u32, VisTree)>, BuildStats), BuildError> {
+    build_resuming(
+        scene,
+        tracer,
+        params,
+        shard,
+        Vec::new(),
+        &|_, _| {},
+        progress,
+        record,
+    )
+}
+
+/// The subtrees of the fixed top ([`BuildParams::top_levels`]) that shard
+/// `shard` (shard, shards) builds, or all of them, in index order, with
+/// those in `done` (built before, from checkpoints: each must be the
+/// subtree of its index, rooted at its cell) taken as they are and the
+/// others built, each handed to `on_built` as soon as it is finished
+/// (from any thread; not when the node budget cut it short). The same
+/// subtrees as an uninterrupted build: each depends only on the scene,
+/// the parameters and its index, so the shards' subtrees together,
+/// [`graft`]ed, are the tree [`build`] makes, node for node (`vis5d build
+/// --shard`, `--checkpoint`, `vis5d merge`). A shard's subtrees are
+/// those [`shard_subtrees`] deals it. `progress` counts the cells built
+/// now; `record` takes the rays traced, for `vis5d trace`. The node
+/// budget ([`BuildParams::max_nodes`]) counts the fixed top and the
+/// subtrees built now.
+///
+/// # Errors
+/// As [`build`]; [`BuildError::Parameter`] (`resumed subtree`) when a
+/// subtree of `done` does not fit its place.
+#[allow(clippy::too_many_arguments)]
+pub fn build_resuming(
+    scene: &Scene,
+    tracer: &Tracer,
+    params: &BuildParams,
+    shard: Option<(u32, u32)>,
+    done: Vec<(u32, VisTree)>,
+    on_built: &(dyn Fn(u32, &VisTree) + Sync),
+    progress: &(dyn Fn(f64) + Sync),
+    record: Option<&crate::raylog::RayLog>,
+) -> Result<(Vec<(u32, VisTree)>, BuildStats), BuildError> {
     params.validate()?;
     let start = Instant::now();
     let root = Cell::all_directions(params.root_box(scene));
+    let cells = subtree_cells(root, params.top_levels, params.grid_bits);
+    let wanted: Vec<u32> = match shard {
+        None => (0..cells.len() as u32).collect(),
+        Some((i, n)) => shard_subtrees(scene, params, i, n),
+    };
+    let mut reused: Vec<Option<VisTree>> = vec![None; cells.len()];
+    for (j, tree) in done {
+        let fits = cells.get(j as usize).is_some_and(|c| {
+            tree.root_cell() == *c
+                && tree.grid_bits() == params.grid_bits
+                && tree.object_count() == scene.objects().len()
+        });
+        if !fits {
+            return Err(BuildError::Parameter {
+                name: "resumed subtree",
+                expected: format!(
+                    "one of the {} subtrees of this scene and these parameters, in its cell",
+                    cells.len()
+                ),
+                value: j.to_string(),
+            });
+        }
+        reused[j as usize] = Some(tree);
+    }
+    let todo: Vec<u32> = wanted
+        .iter()
+        .copied()
+        .filter(|&j| reused[j as usize].is_none())
+        .collect();
+    let measure = if todo.len() == cells.len() {
+        root.measure()
+    } else {
+        todo.iter().map(|&j| cells[j as usize].measure()).sum()
+    };
     let ctx = builder_node::Ctx {
         scene,
         tracer,
@@ -670,14 +794,15 @@ fn build_recording(
             Vec::new()
         },
         always_visible: scene.always_visible().collect(),
-        root_measure: root.measure(),
+        root_measure: measure,
         misses_decision: params.sprt.misses_decision(),
         internal_min_misses: params
             .sprt
             .misses_to_invisible()
             .saturating_mul(params.internal_miss_factor),
         done: AtomicU64::new(0),
-        nodes: AtomicU64::new(1),
+        // The fixed top's nodes, its subtrees' roots among them.
+        nodes: AtomicU64::new((2u64 << params.top_levels) - 1),
         over_budget: AtomicBool::new(false),
         progress,
         record,
@@ -685,31 +810,58 @@ fn build_recording(
     // Every object with a surface: an empty one (no triangles) is never
     // sampled and never in a set.
     let candidates = scene.surface_objects();
-    let mut stats = BuildStats::default();
-    let built = builder_node::build_node(
-        &ctx,
-        root,
-        builder_node::NodeState::ROOT,
-        params.seed,
-        &candidates,
-        &ObjectSet::new(scene.objects().len()),
-        Vec::new(),
-        Vec::new(),
-        &mut stats,
-    );
+    let built: Vec<(VisTree, BuildStats)> = todo
+        .par_iter()
+        .map(|&j| {
+            let mut stats = BuildStats::default();
+            let built = builder_node::build_node(
+                &ctx,
+                cells[j as usize],
+                builder_node::NodeState::top(params.top_levels),
+                params.subtree_seed(j as usize),
+                &candidates,
+                &ObjectSet::new(scene.objects().len()),
+                Vec::new(),
+                Vec::new(),
+                &mut stats,
+            );
+            let mut nodes = Vec::new();
+            let mut records = Vec::new();
+            built.flatten_into(&mut nodes, &mut records);
+            let tree = VisTree::from_parts(
+                cells[j as usize],
+                params.grid_bits,
+                scene.objects().len(),
+                nodes,
+            )
+            .with_leaf_records(Some(records))
+            .expect("one record per leaf");
+            // A subtree cut short by the node budget is not finished.
+            if !ctx.over_budget.load(Ordering::Relaxed) {
+                on_built(j, &tree);
+            }
+            (tree, stats)
+        })
+        .collect();
     if ctx.over_budget.load(Ordering::Relaxed) {
         return Err(BuildError::TooManyNodes {
             max_nodes: params.max_nodes,
         });
     }
-    let mut nodes = Vec::new();
-    let mut records = Vec::new();
-    built.flatten_into(&mut nodes, &mut records);
-    let tree = VisTree::from_parts(root, params.grid_bits, scene.objects().len(), nodes)
-        .with_leaf_records(Some(records))
-        .expect("one record per leaf");
+    let mut stats = BuildStats::default();
+    for ((tree, s), &j) in built.into_iter().zip(&todo) {
+        stats.add(&s);
+        reused[j as usize] = Some(tree);
+    }
+    let parts = wanted
+        .iter()
+        .map(|&j| {
+            let tree = reused[j as usize].take().expect("built or resumed");
+            (j, tree)
+        })
+        .collect();
     stats.seconds = start.elapsed().as_secs_f64();
-    Ok((tree, stats))
+    Ok((parts, stats))
 }
 
 /// Per object, the objects whose bounding boxes, each grown by a tenth of

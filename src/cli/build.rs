@@ -17,6 +17,7 @@ use vis5d::sprt::SprtParams;
 use vis5d::trace::Tracer;
 use vis5d::tree::TreeSummary;
 
+use crate::checkpoint::Checkpoints;
 use crate::common::{
     CodingSize, ShapeReport, World, WorldBox, check_output, coding_sizes, flag, load_scene_up,
     parse_box, parse_pair, print_shape, progress_bar,
@@ -230,6 +231,33 @@ pub struct BuildArgs {
     /// rather than running for hours or out of memory.
     #[arg(long, default_value_t = BuildParams::default().max_nodes, value_parser = clap::value_parser!(u64).range(1..=4_294_967_295))]
     max_nodes: u64,
+    /// Cut the root this many times, each time halving its longest
+    /// spatial axis, before any ray is cast, and build the 2^K cells as
+    /// roots of their own (every object a candidate): what lets `--shard`
+    /// split the build and `vis5d merge` put it back together byte for
+    /// byte [0 to 10, at most --max-depth; 0: one root, split by E(A, B)
+    /// like every node].
+    #[arg(conflicts_with = "conservative", long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=10))]
+    top_levels: u32,
+    /// Build only shard I of N (I from 0 to N-1): the subtrees of the
+    /// fixed top (--top-levels) dealt to it by their estimated cost, so
+    /// that shards take about the same time. Writes a part (to -o, else
+    /// the model's path with .partI.v5dpart), which `vis5d merge` checks
+    /// and joins with the other N-1 into the very file a single build
+    /// writes. Not with --slices or --verify-views (they need the whole
+    /// tree: run them on the merged file).
+    #[arg(long, value_name = "I/N", value_parser = parse_shard,
+          conflicts_with_all = ["conservative", "slices", "verify_views"])]
+    shard: Option<(u32, u32)>,
+    /// Save each finished subtree of the fixed top (--top-levels) in this
+    /// folder as it completes (atomically), and on a run after an
+    /// interruption take the ones saved instead of building them again:
+    /// the file is byte for byte that of an uninterrupted build. A
+    /// checkpoint that is damaged or from another build (another scene,
+    /// other parameters) is refused, never used. The folder is kept
+    /// afterwards (a rerun reuses it all); remove it when done.
+    #[arg(long, value_name = "DIR", conflicts_with = "conservative")]
+    checkpoint: Option<PathBuf>,
     /// Slices (papers/004): cut every object into N slices along each
     /// axis (an object of over 1,024 triangles into pieces across x and y
     /// first) and store, per leaf, the slices that the extended-projection
@@ -300,6 +328,7 @@ impl BuildArgs {
             view_grow: self.grow,
             seed: self.seed,
             max_nodes: self.max_nodes,
+            top_levels: self.top_levels,
         }
     }
 }
@@ -471,20 +500,26 @@ pub fn run(args: &BuildArgs) -> Result<()> {
     let start = Instant::now();
     let tracer = Tracer::new(&scene);
     let bvh_seconds = start.elapsed().as_secs_f64();
+    if let Some(shard) = args.shard {
+        return run_shard(
+            args,
+            &scene,
+            &tracer,
+            &params,
+            ids.as_deref(),
+            shard,
+            &output,
+        );
+    }
 
     let bar = progress_bar("building", 1000);
-    let (tree, stats) = vis5d::builder::build(&scene, &tracer, &params, &|f| {
-        bar.set_position((f * 1000.0) as u64)
-    })
-    .map_err(|e| match e {
-        BuildError::TooManyNodes { .. } if params.max_nodes < args.max_nodes => anyhow::anyhow!(
-            "{e} (the memory budget, {}, holds {} nodes of this scene)",
-            memory::human(memory::budget().unwrap_or(0)),
-            params.max_nodes
-        ),
-        e => e.into(),
-    })?;
+    let (subtrees, stats) =
+        build_subtrees(args, &scene, &tracer, &params, ids.as_deref(), None, &bar)?;
     bar.finish_and_clear();
+    let trees: Vec<_> = subtrees.into_iter().map(|(_, t)| t).collect();
+    let root = vis5d::geom::cell::Cell::all_directions(params.root_box(&scene));
+    let tree = vis5d::builder::graft(root, params.top_levels, params.grid_bits, &trees)
+        .map_err(|e| anyhow::anyhow!("internal error: {e}"))?;
     tree.validate()
         .map_err(|e| anyhow::anyhow!("internal error: the built tree is inconsistent: {e}"))?;
     let summary = vis5d::builder::summarize(&tree, &scene);
@@ -531,6 +566,169 @@ pub fn run(args: &BuildArgs) -> Result<()> {
     Ok(())
 }
 
+/// The subtrees of the fixed top that `shard` builds (all of them
+/// without), in index order, resumed from and saved to `--checkpoint`
+/// when given, with the build's statistics (of the subtrees built now).
+fn build_subtrees(
+    args: &BuildArgs,
+    scene: &Scene,
+    tracer: &Tracer,
+    params: &BuildParams,
+    ids: Option<&[String]>,
+    shard: Option<(u32, u32)>,
+    bar: &indicatif::ProgressBar,
+) -> Result<(Vec<(u32, vis5d::tree::VisTree)>, BuildStats)> {
+    let checkpoints = args
+        .checkpoint
+        .as_deref()
+        .map(|dir| Checkpoints::open(dir, scene, params, ids))
+        .transpose()?;
+    let done = match &checkpoints {
+        Some(c) => c.read()?,
+        None => Vec::new(),
+    };
+    if !done.is_empty() {
+        say!(
+            "resuming: {} subtrees from {}",
+            done.len(),
+            args.checkpoint
+                .as_deref()
+                .expect("checkpoints read")
+                .display()
+        );
+    }
+    let save = |index: u32, tree: &vis5d::tree::VisTree| {
+        if let Some(c) = &checkpoints {
+            c.save(index, tree);
+        }
+    };
+    let built = vis5d::builder::build_resuming(
+        scene,
+        tracer,
+        params,
+        shard,
+        done,
+        &save,
+        &|f| bar.set_position((f * 1000.0) as u64),
+        None,
+    )
+    .map_err(|e| match e {
+        BuildError::TooManyNodes { .. } if params.max_nodes < args.max_nodes => anyhow::anyhow!(
+            "{e} (the memory budget, {}, holds {} nodes of this scene)",
+            memory::human(memory::budget().unwrap_or(0)),
+            params.max_nodes
+        ),
+        BuildError::Parameter {
+            name: "resumed subtree",
+            ..
+        } => anyhow::anyhow!(
+            "{}: a checkpoint does not fit this build ({e}); remove the folder to start again",
+            args.checkpoint
+                .as_deref()
+                .map_or(String::new(), |d| d.display().to_string())
+        ),
+        e => e.into(),
+    })?;
+    if let Some(c) = checkpoints {
+        c.finish()?;
+    }
+    Ok(built)
+}
+
+/// Parses `I/N`, a shard of a build: I below N, N from 1 to 65,536.
+fn parse_shard(s: &str) -> Result<(u32, u32), String> {
+    let (i, n) = s.split_once('/').ok_or("expected I/N, as 0/4")?;
+    let p = |x: &str| x.trim().parse::<u32>().map_err(|e| format!("{x:?}: {e}"));
+    let (i, n) = (p(i)?, p(n)?);
+    if !(1..=65_536).contains(&n) {
+        return Err(format!("the number of shards must be 1 to 65536, not {n}"));
+    }
+    if i >= n {
+        return Err(format!(
+            "shards count from 0: shard {i} of {n} does not exist (0 to {})",
+            n - 1
+        ));
+    }
+    Ok((i, n))
+}
+
+/// `vis5d build --shard I/N`: the shard's subtrees of `scene` (traced by
+/// `tracer`, ids `ids`), written to `output` as a part.
+fn run_shard(
+    args: &BuildArgs,
+    scene: &Scene,
+    tracer: &Tracer,
+    params: &BuildParams,
+    ids: Option<&[String]>,
+    (shard, shards): (u32, u32),
+    output: &std::path::Path,
+) -> Result<()> {
+    let start = Instant::now();
+    let bar = progress_bar(&format!("building shard {shard}/{shards}"), 1000);
+    let (subtrees, stats) = build_subtrees(
+        args,
+        scene,
+        tracer,
+        params,
+        ids,
+        Some((shard, shards)),
+        &bar,
+    )?;
+    bar.finish_and_clear();
+    let count = subtrees.len();
+    let part = codec::V5dPart {
+        top_levels: params.top_levels,
+        shard,
+        shards,
+        coding: args.coding,
+        subtrees: subtrees
+            .into_iter()
+            .map(|(index, tree)| {
+                // Any coding reads back the same tree; the merge codes the
+                // whole one as asked.
+                let mut file = vis5d::builder::to_file(scene, tree, params, Some(Coding::Parent));
+                set_ids(&mut file, ids);
+                (index, file)
+            })
+            .collect(),
+    };
+    let bytes = codec::write_part(&part);
+    if !args.dry_run {
+        vis5d::atomic_write::write_atomic(output, &bytes)
+            .with_context(|| format!("{}: cannot write the part", output.display()))?;
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    let mut out = io::stdout().lock();
+    if args.json {
+        let report = serde_json::json!({
+            "file": args.file.display().to_string(),
+            "shard": shard,
+            "shards": shards,
+            "top_levels": params.top_levels,
+            "subtrees": count,
+            "rays_cast": stats.rays(),
+            "seconds": seconds,
+            "written": (!args.dry_run).then(|| output.display().to_string()),
+            "bytes": bytes.len(),
+        });
+        serde_json::to_writer_pretty(&mut out, &report)?;
+        writeln!(out)?;
+    } else {
+        writeln!(
+            out,
+            "shard {shard}/{shards}: {count} of the {} subtrees, {} rays, {seconds:.2} s{}",
+            1u64 << params.top_levels,
+            stats.rays(),
+            if args.dry_run {
+                String::new()
+            } else {
+                format!("; wrote {} ({} bytes)", output.display(), bytes.len())
+            }
+        )?;
+    }
+    Ok(())
+}
+
 /// The flag behind a parameter of the builder or the bake, as their
 /// errors name it.
 fn build_flag(name: &str) -> String {
@@ -547,10 +745,10 @@ fn build_flag(name: &str) -> String {
 /// Where the tree goes (`-o`, else beside the model), checked before any
 /// work (unless `--dry-run`), and the memory of a verification view.
 fn checked_output(args: &BuildArgs) -> Result<PathBuf> {
-    let output = args
-        .output
-        .clone()
-        .unwrap_or_else(|| args.file.with_extension("v5d"));
+    let output = args.output.clone().unwrap_or_else(|| match args.shard {
+        Some((i, _)) => args.file.with_extension(format!("part{i}.v5dpart")),
+        None => args.file.with_extension("v5d"),
+    });
     if !args.dry_run {
         // Fail before the build, not after it.
         let mut inputs = vec![args.file.as_path()];
@@ -616,7 +814,7 @@ fn object_ids(args: &BuildArgs, scene: &vis5d::scene::Scene) -> Result<Option<Ve
 }
 
 /// Puts `ids` (when given) into the file's object table.
-fn set_ids(file: &mut codec::V5dFile, ids: Option<&[String]>) {
+pub(crate) fn set_ids(file: &mut codec::V5dFile, ids: Option<&[String]>) {
     if let Some(ids) = ids {
         for (o, id) in file.objects.iter_mut().zip(ids) {
             o.id = id.clone();

@@ -18,9 +18,11 @@ macro_rules! say {
 
 mod build;
 mod check;
+mod checkpoint;
 mod common;
 mod info;
 mod memory;
+mod merge;
 mod oracle;
 mod query;
 mod report;
@@ -173,6 +175,15 @@ enum Command {
     /// so that another ray caster can be timed on exactly the same rays
     /// (scripts/compare-embree.sh does, with Embree).
     Trace(trace::TraceArgs),
+    /// Join the parts of a sharded build into one .v5d file.
+    ///
+    /// `vis5d build MODEL --top-levels K --shard I/N -o PART` builds shard
+    /// I of N (the fixed top's subtrees dealt to it); `vis5d merge PART...
+    /// -o FILE.v5d` checks that the parts are every shard of one build
+    /// (the same scene, parameters, coding and split, each shard once,
+    /// every subtree once) and writes the file a single `vis5d build MODEL
+    /// --top-levels K` with the same parameters writes, byte for byte.
+    Merge(merge::MergeArgs),
 }
 
 fn main() -> ExitCode {
@@ -206,6 +217,7 @@ fn main() -> ExitCode {
         Command::Report(args) => report::run(&args),
         Command::Scene(args) => scene::run(&args),
         Command::Trace(args) => trace::run(&args),
+        Command::Merge(args) => merge::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -8,6 +8,7 @@ mod codec_bounds;
 mod codec_file;
 mod codec_flags;
 mod codec_ids;
+mod codec_part;
 mod codec_tree;
 
 pub use codec_bits::{BitReader, BitWriter};
@@ -21,6 +22,7 @@ pub use codec_flags::{FlagError, ObjectFlags, flags_from_names};
 pub use codec_ids::{
     IdError, MAX_ID_BYTES, apply_user_ids, default_ids, first_duplicate, is_valid_id, replace_ids,
 };
+pub use codec_part::{PART_MAGIC, PART_VERSION, V5dPart, read_part, write_part};
 pub use codec_tree::{CodeSize, Coding, DecodeLimits, UnknownCoding, code_size, decode, encode};
 
 /// The parameter key that names how a file's tree was made; a file

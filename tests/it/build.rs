@@ -169,6 +169,49 @@ fn same_seed_same_tree_whatever_the_thread_count() {
     assert!(reseeded != one, "the seed changes nothing");
 }
 
+/// With a fixed top (`top_levels`), the subtrees are built in parallel
+/// and put together in their order: the same tree whatever the thread
+/// count, and the fixed nodes' sets are the unions of their children's.
+#[test]
+fn a_fixed_top_builds_the_same_tree_whatever_the_thread_count() {
+    let s = scene::load(crate::committed("machine.obj")).unwrap();
+    let tracer = Tracer::new(&s);
+    let params = BuildParams {
+        top_levels: 2,
+        max_depth: 7,
+        ..BuildParams::default()
+    };
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| build(&s, &tracer, &params, &|_| {}).unwrap().0)
+    };
+    let (one, two) = (run(1), run(2));
+    assert!(one == two, "trees differ across thread counts");
+    one.validate().unwrap();
+    // The top two levels are the fixed cuts: spatial, at the midpoints.
+    let n = one.nodes();
+    for i in [0, 1, n[0].split.unwrap().above as usize] {
+        let sp = n[i].split.expect("a fixed node is split");
+        assert!((sp.dim as usize) < THETA, "node {i} is cut in {}", sp.dim);
+        assert_eq!(sp.code, 1 << (params.grid_bits - 1), "node {i}");
+    }
+    // And the default (no fixed top) is a different tree.
+    let (plain, _) = build(
+        &s,
+        &tracer,
+        &BuildParams {
+            top_levels: 0,
+            ..params.clone()
+        },
+        &|_| {},
+    )
+    .unwrap();
+    assert!(plain != one);
+}
+
 /// The builder's sampling and tracing run in code compiled for AVX2 and
 /// FMA where the CPU has them (`Tracer::is_wide`), else in portable code:
 /// the same operations in the same order, so the same tree and the same

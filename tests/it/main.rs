@@ -15,6 +15,7 @@ mod oracle;
 mod procedural;
 mod real_scenes;
 mod report;
+mod shard;
 mod shrink;
 mod slices;
 mod sprt;
