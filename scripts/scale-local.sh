@@ -19,7 +19,7 @@ if [ ! -x /usr/bin/time ]; then
     exit 1
 fi
 cargo build --release --quiet --bin vis5d
-bin=target/release/vis5d
+bin="${CARGO_TARGET_DIR:-target}/release/vis5d"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 rows=()
