@@ -104,7 +104,7 @@ pub fn subtree_costs(scene: &crate::scene::Scene, cells: &[Cell]) -> Vec<u64> {
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum GraftError {
     /// Not 2^levels subtrees.
-    #[error("{levels} fixed levels take {} subtrees, not {got}", 1u64 << levels)]
+    #[error("{levels} fixed levels (at most 10) take 2^{levels} subtrees, not {got}")]
     Count {
         /// The fixed levels.
         levels: u32,
@@ -130,7 +130,7 @@ pub fn graft(
     grid_bits: u32,
     subtrees: &[VisTree],
 ) -> Result<VisTree, GraftError> {
-    if subtrees.len() as u64 != 1u64 << levels {
+    if levels > MAX_TOP_LEVELS || subtrees.len() as u64 != 1u64 << levels {
         return Err(GraftError::Count {
             levels,
             got: subtrees.len(),
@@ -224,7 +224,8 @@ pub enum MergeError {
     /// No parts given.
     #[error("no parts to merge")]
     Empty,
-    /// The parts disagree on how the build was split.
+    /// The parts disagree on how the build was split (or a part's split
+    /// is impossible: a shard beyond its count, too many levels).
     #[error(
         "part {part} is shard {shard} of {shards} with {levels} fixed levels, the first part \
          one of {first_shards} with {first_levels}: parts of different builds"
@@ -280,7 +281,12 @@ pub fn merge(parts: Vec<crate::codec::V5dPart>) -> Result<crate::codec::V5dFile,
     let (levels, shards, coding) = (first.top_levels, first.shards, first.coding);
     let mut seen = vec![false; shards as usize];
     for (i, p) in parts.iter().enumerate() {
-        if p.top_levels != levels || p.shards != shards || p.coding != coding {
+        if p.top_levels != levels
+            || p.shards != shards
+            || p.coding != coding
+            || p.shard >= p.shards
+            || p.top_levels > MAX_TOP_LEVELS
+        {
             return Err(MergeError::Split {
                 part: i,
                 shard: p.shard,

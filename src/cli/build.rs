@@ -256,7 +256,7 @@ pub struct BuildArgs {
     /// checkpoint that is damaged or from another build (another scene,
     /// other parameters) is refused, never used. The folder is kept
     /// afterwards (a rerun reuses it all); remove it when done.
-    #[arg(long, value_name = "DIR", conflicts_with = "conservative")]
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["conservative", "dry_run"])]
     checkpoint: Option<PathBuf>,
     /// Slices (papers/004): cut every object into N slices along each
     /// axis (an object of over 1,024 triangles into pieces across x and y
