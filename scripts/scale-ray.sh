@@ -16,13 +16,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 k=${1:-6}
-venv=${VIS5D_RAY_VENV:-target/ray-venv}
-if [ ! -x "$venv/bin/ray" ]; then
-    python3 -m venv "$venv"
-    "$venv/bin/pip" install --quiet -r scripts/requirements.txt
-fi
-cargo build --release --quiet --bin vis5d
-bin="${CARGO_TARGET_DIR:-target}/release/vis5d"
+. scripts/ray-env.sh
 tmp=$(mktemp -d)
 port=${VIS5D_RAY_PORT:-6392}
 trap '"$venv/bin/ray" stop --force > /dev/null 2>&1 || true; rm -rf "$tmp"' EXIT

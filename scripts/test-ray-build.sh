@@ -9,13 +9,7 @@
 #   scripts/test-ray-build.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
-venv=${VIS5D_RAY_VENV:-target/ray-venv}
-if [ ! -x "$venv/bin/ray" ]; then
-    python3 -m venv "$venv"
-    "$venv/bin/pip" install --quiet -r scripts/requirements.txt
-fi
-cargo build --release --quiet --bin vis5d
-bin="${CARGO_TARGET_DIR:-target}/release/vis5d"
+. scripts/ray-env.sh
 tmp=$(mktemp -d)
 port=${VIS5D_RAY_PORT:-6391}
 export RAY_ADDRESS="127.0.0.1:$port"

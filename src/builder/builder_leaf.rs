@@ -413,7 +413,8 @@ fn run(
 /// (the tracer's wide code, [`crate::trace::Tracer::is_wide`]), the draws
 /// run in a copy of this code compiled for them: the same operations in
 /// the same order (Rust fuses no multiply and add on its own), so the same
-/// samples bit for bit, about a tenth faster (notes/trace.md, stop 39).
+/// samples bit for bit; San Francisco's build 7% faster (notes/trace.md,
+/// step 8).
 fn draw_round(
     ctx: &Ctx,
     cell: &Cell,
