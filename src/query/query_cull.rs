@@ -1,13 +1,12 @@
-//! The frustum cull of a view's answer, in the form a query runs it: the
-//! side planes of a [`Frustum`] laid out one per lane of four, so that one
-//! object's box is tested against all of them with a handful of
-//! straight-line multiply-adds the compiler turns into vector code, and
-//! the eye's plane beside them.
+//! The frustum cull of a view's answer, in the form a query runs it:
+//! eight objects' boxes at a time against each of a [`Frustum`]'s planes,
+//! the eye's and the four sides, with straight-line multiplies and adds
+//! the compiler turns into vector code ([`Boxes8`], [`Cull::keeps8`]).
 //!
 //! A box with corners `lo`, `hi` reaches furthest along a normal `n` at
 //! the corner that takes `hi` where `n` is positive and `lo` where it is
 //! negative: `n+ . hi + n- . lo`, with `n+` and `n-` the normal's positive
-//! and negative parts. The two parts are stored per lane, so no lane
+//! and negative parts. The two parts are stored apart, so no lane
 //! selects a corner. The slack the [`Frustum`] allows a box (the angle
 //! times its farthest point from the eye, plus f32 rounding) is bounded
 //! for every box of the scene at once, from the scene's box, and folded
@@ -20,32 +19,91 @@ use glam::{DVec3, Vec3};
 use super::Frustum;
 use crate::geom::Aabb;
 
-/// Lanes: the frustum's four sides, or planes that keep everything (the
-/// eye's plane is apart).
-const LANES: usize = 4;
+/// The most planes a [`Frustum`] has: the eye's and four sides.
+const PLANES: usize = 5;
+
+/// One plane of a [`Cull`]: a box is kept when it reaches `keep` along
+/// the normal, whose positive and negative parts are apart.
+#[derive(Clone, Copy, Debug)]
+struct Plane {
+    /// The normal's positive part (times a box's `hi`).
+    pos: [f32; 3],
+    /// The normal's negative part (times a box's `lo`).
+    neg: [f32; 3],
+    /// The threshold.
+    keep: f32,
+}
+
+impl Plane {
+    /// A plane that keeps every box.
+    const ANY: Plane = Plane {
+        pos: [0.0; 3],
+        neg: [0.0; 3],
+        keep: f32::NEG_INFINITY,
+    };
+
+    /// How far the box of corners `lo`, `hi` reaches along the normal:
+    /// the same operations in the same order wherever it is used, so that
+    /// one box and eight at a time give the same answer to the bit.
+    #[inline(always)]
+    fn along(&self, lo: [f32; 3], hi: [f32; 3]) -> f32 {
+        self.pos[0] * hi[0]
+            + self.neg[0] * lo[0]
+            + self.pos[1] * hi[1]
+            + self.neg[1] * lo[1]
+            + self.pos[2] * hi[2]
+            + self.neg[2] * lo[2]
+    }
+}
+
+/// Eight objects' boxes, corner coordinate by corner coordinate
+/// (`[lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]`, eight of each), as
+/// [`Cull::keeps8`] tests them: the eight tests run as one in vector
+/// registers.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+pub(crate) struct Boxes8 {
+    c: [[f32; 8]; 6],
+}
+
+impl Boxes8 {
+    /// Eight boxes that are always kept ([`UNBOUNDED`]).
+    pub(crate) const UNBOUNDED: Boxes8 = Boxes8 {
+        c: [
+            [-f32::MAX; 8],
+            [-f32::MAX; 8],
+            [-f32::MAX; 8],
+            [f32::MAX; 8],
+            [f32::MAX; 8],
+            [f32::MAX; 8],
+        ],
+    };
+
+    /// Box `i` (0 to 7) as [`corners`] gives it.
+    pub(crate) fn get(&self, i: usize) -> [f32; 6] {
+        self.c.map(|c| c[i])
+    }
+
+    /// Sets box `i` (0 to 7) to the corners `b`.
+    pub(crate) fn set(&mut self, i: usize, b: &[f32; 6]) {
+        for (c, &v) in self.c.iter_mut().zip(b) {
+            c[i] = v;
+        }
+    }
+}
 
 /// A [`Frustum`]'s planes as the cull tests them (see the module docs).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Cull {
-    /// Per axis, per lane: the normal's positive part (times `hi`).
-    pos: [[f32; LANES]; 3],
-    /// Per axis, per lane: the normal's negative part (times `lo`).
-    neg: [[f32; LANES]; 3],
-    /// Per lane: a box is kept when it reaches this far along the normal.
-    keep: [f32; LANES],
-    /// The eye's plane, tested on its own: its normal's positive and
-    /// negative parts, and its threshold.
-    eye: ([f32; 3], [f32; 3], f32),
+    /// The eye's plane, then the sides; [`Plane::ANY`] past the frustum's.
+    planes: [Plane; PLANES],
 }
 
 impl Cull {
     /// The cull of `frustum` for boxes inside `scene` (finite, not empty).
     pub(crate) fn new(frustum: &Frustum, scene: &Aabb) -> Cull {
         let mut cull = Cull {
-            pos: [[0.0; LANES]; 3],
-            neg: [[0.0; LANES]; 3],
-            keep: [f32::NEG_INFINITY; LANES],
-            eye: ([0.0; 3], [0.0; 3], f32::NEG_INFINITY),
+            planes: [Plane::ANY; PLANES],
         };
         let (lo, hi) = (scene.min.as_dvec3(), scene.max.as_dvec3());
         // The largest |coordinate| of the scene's points, per axis.
@@ -82,15 +140,11 @@ impl Cull {
                 f32::NEG_INFINITY
             };
             let (pos, neg) = (n.max(Vec3::ZERO), n.min(Vec3::ZERO));
-            if k == 0 {
-                cull.eye = (pos.to_array(), neg.to_array(), keep);
-                continue;
-            }
-            for axis in 0..3 {
-                cull.pos[axis][k - 1] = pos[axis];
-                cull.neg[axis][k - 1] = neg[axis];
-            }
-            cull.keep[k - 1] = keep;
+            cull.planes[k] = Plane {
+                pos: pos.to_array(),
+                neg: neg.to_array(),
+                keep,
+            };
         }
         cull
     }
@@ -100,25 +154,55 @@ impl Cull {
     /// `f32::MAX` corners is always kept.
     #[inline]
     pub(crate) fn keeps(&self, b: &[f32; 6]) -> bool {
-        let mut inside = [false; LANES];
-        for (lane, inside) in inside.iter_mut().enumerate() {
-            let along = self.pos[0][lane] * b[3]
-                + self.neg[0][lane] * b[0]
-                + self.pos[1][lane] * b[4]
-                + self.neg[1][lane] * b[1]
-                + self.pos[2][lane] * b[5]
-                + self.neg[2][lane] * b[2];
-            *inside = along >= self.keep[lane];
-        }
-        let (pos, neg, keep) = &self.eye;
-        let along = pos[0] * b[3]
-            + neg[0] * b[0]
-            + pos[1] * b[4]
-            + neg[1] * b[1]
-            + pos[2] * b[5]
-            + neg[2] * b[2];
+        let (lo, hi) = ([b[0], b[1], b[2]], [b[3], b[4], b[5]]);
         // `&`, not `&&`: no branch.
-        (along >= *keep) & inside.iter().all(|&i| i)
+        self.planes
+            .iter()
+            .fold(true, |k, p| k & (p.along(lo, hi) >= p.keep))
+    }
+
+    /// [`Cull::keeps`] of each of the eight boxes, as bit i for box i.
+    #[inline]
+    pub(crate) fn keeps8(&self, b: &Boxes8) -> u8 {
+        (0..8).fold(0, |m, i| m | (u8::from(self.keeps(&b.get(i))) << i))
+    }
+
+    /// [`Cull::keeps8`] in AVX registers, eight lanes: [`Plane::along`]'s
+    /// multiplies and adds in its order (never fused), so each lane's sum
+    /// is the one [`Cull::keeps`] makes, and its `>=` (false on NaN).
+    ///
+    /// # Safety
+    /// The CPU must have AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    #[inline]
+    pub(crate) fn keeps8_avx(&self, b: &Boxes8) -> u8 {
+        use std::arch::x86_64::*;
+        // SAFETY: each load reads the eight f32 of one row of `b.c`.
+        let c = unsafe {
+            [
+                _mm256_loadu_ps(b.c[0].as_ptr()),
+                _mm256_loadu_ps(b.c[1].as_ptr()),
+                _mm256_loadu_ps(b.c[2].as_ptr()),
+                _mm256_loadu_ps(b.c[3].as_ptr()),
+                _mm256_loadu_ps(b.c[4].as_ptr()),
+                _mm256_loadu_ps(b.c[5].as_ptr()),
+            ]
+        };
+        let mut kept = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+        for p in &self.planes {
+            let mut along = _mm256_add_ps(
+                _mm256_mul_ps(_mm256_set1_ps(p.pos[0]), c[3]),
+                _mm256_mul_ps(_mm256_set1_ps(p.neg[0]), c[0]),
+            );
+            along = _mm256_add_ps(along, _mm256_mul_ps(_mm256_set1_ps(p.pos[1]), c[4]));
+            along = _mm256_add_ps(along, _mm256_mul_ps(_mm256_set1_ps(p.neg[1]), c[1]));
+            along = _mm256_add_ps(along, _mm256_mul_ps(_mm256_set1_ps(p.pos[2]), c[5]));
+            along = _mm256_add_ps(along, _mm256_mul_ps(_mm256_set1_ps(p.neg[2]), c[2]));
+            let reaches = _mm256_cmp_ps::<_CMP_GE_OQ>(along, _mm256_set1_ps(p.keep));
+            kept = _mm256_and_ps(kept, reaches);
+        }
+        _mm256_movemask_ps(kept) as u8
     }
 }
 
@@ -190,6 +274,22 @@ mod tests {
                     culled_by_both += usize::from(!f && !c);
                 }
                 assert!(cull.keeps(&UNBOUNDED));
+                // Eight at a time, portable and in AVX registers: the
+                // same answers, box for box.
+                for group in boxes.chunks(8) {
+                    let mut eight = Boxes8::UNBOUNDED;
+                    for (i, b) in group.iter().enumerate() {
+                        eight.set(i, &corners(b));
+                    }
+                    let one_by_one =
+                        (0..8).fold(0u8, |m, i| m | (u8::from(cull.keeps(&eight.get(i))) << i));
+                    assert_eq!(cull.keeps8(&eight), one_by_one);
+                    #[cfg(target_arch = "x86_64")]
+                    if std::arch::is_x86_feature_detected!("avx") {
+                        // SAFETY: the CPU has AVX.
+                        assert_eq!(unsafe { cull.keeps8_avx(&eight) }, one_by_one);
+                    }
+                }
             }
         }
         assert!(

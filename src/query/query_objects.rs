@@ -1,12 +1,12 @@
 //! The object table of a loaded file, as queries and engines read it: per
 //! object a 16-byte row and its box (24 bytes, apart, for the frustum
-//! cull to read alone), and one string holding the names and the ids (an
+//! cull to read alone, eight boxes to a [`Boxes8`]), and one string holding the names and the ids (an
 //! id is stored only where it is not the name, as it mostly is).
 
 use glam::Vec3;
 
 use super::Frustum;
-use super::query_cull::{Cull, UNBOUNDED, corners, scene_box};
+use super::query_cull::{Boxes8, Cull, UNBOUNDED, corners, scene_box};
 use crate::codec::{FileObject, ObjectFlags};
 use crate::geom::Aabb;
 
@@ -72,9 +72,10 @@ struct Row {
 pub(crate) struct ObjectTable {
     text: String,
     rows: Vec<Row>,
-    /// Per object, its box's corners ([`Cull::keeps`]): [`UNBOUNDED`]
-    /// where the file gives none, or the object has no triangles.
-    boxes: Vec<[f32; 6]>,
+    /// Per object, its box's corners, object i in group i / 8
+    /// ([`Cull::keeps8`]): [`UNBOUNDED`] where the file gives none, or the
+    /// object has no triangles, and past the last object.
+    boxes: Vec<Boxes8>,
     /// The box of all the objects' boxes, when one has a box.
     scene: Option<Aabb>,
     /// The objects in the order of their ids, for [`ObjectTable::index`].
@@ -87,7 +88,7 @@ impl ObjectTable {
     pub(crate) fn new(objects: &[FileObject]) -> Option<ObjectTable> {
         let mut text = String::new();
         let mut rows = Vec::with_capacity(objects.len());
-        let mut boxes = Vec::with_capacity(objects.len());
+        let mut boxes = vec![Boxes8::UNBOUNDED; objects.len().div_ceil(8)];
         for o in objects {
             text.push_str(&o.name);
             let name_end = u32::try_from(text.len()).ok()?;
@@ -97,7 +98,8 @@ impl ObjectTable {
             // An empty box (no triangles) is kept as none: queries never
             // cull by it.
             let b = o.bounds.filter(|b| !b.is_empty());
-            boxes.push(b.as_ref().map_or(UNBOUNDED, corners));
+            let i = rows.len();
+            boxes[i / 8].set(i % 8, &b.as_ref().map_or(UNBOUNDED, corners));
             rows.push(Row {
                 name_end,
                 id_end: u32::try_from(text.len()).ok()?,
@@ -158,7 +160,7 @@ impl ObjectTable {
     /// Object `i`'s bounds (`i` in range).
     #[inline]
     pub(crate) fn bounds(&self, i: usize) -> Option<Aabb> {
-        let b = &self.boxes[i];
+        let b = self.boxes[i / 8].get(i % 8);
         self.rows[i].bounded.then(|| Aabb {
             min: Vec3::new(b[0], b[1], b[2]),
             max: Vec3::new(b[3], b[4], b[5]),
@@ -186,18 +188,13 @@ impl ObjectTable {
             return;
         };
         let cull = Cull::new(frustum, scene);
-        for (word, boxes) in out.iter_mut().zip(self.boxes.chunks(64)) {
-            let mut bits = *word;
-            let mut kept = 0;
-            while bits != 0 {
-                let b = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                // Without a branch: half the objects go, unpredictably.
-                let keeps = boxes.get(b).is_none_or(|corners| cull.keeps(corners));
-                kept |= u64::from(keeps) << b;
-            }
-            *word &= kept;
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx") {
+            // SAFETY: the CPU has AVX.
+            unsafe { cull_words_avx(&cull, &self.boxes, out) };
+            return;
         }
+        cull_words(&cull, &self.boxes, out, Cull::keeps8);
     }
 
     /// The bytes held.
@@ -205,9 +202,46 @@ impl ObjectTable {
         std::mem::size_of::<Self>()
             + self.text.capacity()
             + self.rows.capacity() * std::mem::size_of::<Row>()
-            + self.boxes.capacity() * std::mem::size_of::<[f32; 6]>()
+            + self.boxes.capacity() * std::mem::size_of::<Boxes8>()
             + self.by_id.capacity() * 4
     }
+}
+
+/// Removes from `out` the objects whose boxes `cull` does not keep: each
+/// byte of a word that holds an object tests its eight boxes at once with
+/// `keeps8` (objects past `boxes` are kept).
+#[inline(always)]
+fn cull_words(
+    cull: &Cull,
+    boxes: &[Boxes8],
+    out: &mut [u64],
+    keeps8: impl Fn(&Cull, &Boxes8) -> u8,
+) {
+    for (word, boxes) in out.iter_mut().zip(boxes.chunks(8)) {
+        // Only the bytes that hold an object: sparse answers (one
+        // apartment of a block) cost what their objects cost.
+        let (mut bits, mut kept) = (*word, 0);
+        while bits != 0 {
+            let shift = bits.trailing_zeros() & !7;
+            bits &= !(0xff << shift);
+            // A byte past the last group holds no object: kept as it is.
+            kept |= boxes
+                .get(shift as usize / 8)
+                .map_or(0xff, |b| u64::from(keeps8(cull, b)))
+                << shift;
+        }
+        *word &= kept;
+    }
+}
+
+/// [`cull_words`] with [`Cull::keeps8_avx`], inlined.
+///
+/// # Safety
+/// The CPU must have AVX.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+unsafe fn cull_words_avx(cull: &Cull, boxes: &[Boxes8], out: &mut [u64]) {
+    cull_words(cull, boxes, out, |c, b| c.keeps8_avx(b));
 }
 
 #[cfg(test)]

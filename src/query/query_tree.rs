@@ -315,18 +315,22 @@ fn covers(range: &Cell, cell: &Cell) -> bool {
     covered_dims(range, cell) == ALL_DIMS
 }
 
-/// A walk's range and what it does with the sets it meets.
+/// A walk's range, what it does with the sets it meets, and the cell of
+/// the node it is at: one cell for the whole walk, a bound changed on the
+/// way down and put back on the way up (copying a cell per node, with one
+/// bound written alone and the whole read back, cost a stalled load a
+/// node).
 struct Walk<'a, V> {
     range: &'a Cell,
     visitor: &'a mut V,
+    cell: Cell,
 }
 
-/// An internal node as a walk reaches it: its index, cell and set (zero
-/// outside `span`), the preorder rank of its first leaf, [`covered_dims`]
-/// of its cell.
+/// An internal node as a walk reaches it (its cell is the walk's): its
+/// index and set (zero outside `span`), the preorder rank of its first
+/// leaf, [`covered_dims`] of its cell.
 struct At<'a> {
     inner: u32,
-    cell: Cell,
     set: &'a [u64],
     span: std::ops::Range<usize>,
     rank: u32,
@@ -584,10 +588,13 @@ impl CodedTree {
         if scratch.len() < need {
             scratch.resize(need, 0);
         }
-        let mut walk = Walk { range, visitor };
+        let mut walk = Walk {
+            range,
+            visitor,
+            cell: self.root,
+        };
         let at = At {
             inner: 0,
-            cell: self.root,
             set: &self.root_set,
             span: all,
             rank: 0,
@@ -649,7 +656,7 @@ impl CodedTree {
         let words = if N > 0 { N } else { self.words };
         let n = self.inner[at.inner as usize];
         let d = n.dim();
-        let value = self.value(n, &at.cell);
+        let value = self.value(n, &walk.cell);
         let range = walk.range;
         let go_below = range.lo[d] < value;
         let go_above = range.hi[d] >= value;
@@ -672,12 +679,13 @@ impl CodedTree {
             if !(if above { go_above } else { go_below }) {
                 continue;
             }
-            let mut cell = at.cell;
-            if above {
-                cell.lo[d] = value;
+            // This child's bound in d, and the parent's, put back below.
+            let bound = if above {
+                &mut walk.cell.lo[d]
             } else {
-                cell.hi[d] = value;
-            }
+                &mut walk.cell.hi[d]
+            };
+            let parent = std::mem::replace(bound, value);
             let set = if above != above_lighter { h } else { l };
             let span = if N > 0 {
                 span.clone()
@@ -690,14 +698,13 @@ impl CodedTree {
             } else {
                 at.rank
             };
-            let held = range.lo[d] <= cell.lo[d] && range.hi[d] >= cell.hi[d];
+            let held = range.lo[d] <= walk.cell.lo[d] && range.hi[d] >= walk.cell.hi[d];
             let covered = (at.covered & !(1 << d)) | (u8::from(held) << d);
             if leaf || (V::WHOLE_NODES && covered == ALL_DIMS) {
                 walk.visitor.set(leaf.then_some(rank), set, span);
             } else {
                 let child = At {
                     inner: if above { n.end_below } else { at.inner + 1 },
-                    cell,
                     set,
                     span,
                     rank,
@@ -705,6 +712,12 @@ impl CodedTree {
                 };
                 D::recurse::<V, N>(self, walk, child, rest);
             }
+            let bound = if above {
+                &mut walk.cell.lo[d]
+            } else {
+                &mut walk.cell.hi[d]
+            };
+            *bound = parent;
         }
     }
 
