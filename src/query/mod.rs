@@ -57,7 +57,7 @@ use glam::{DMat3, DVec3, DVec4, Mat4, Vec3};
 use crate::bitset::ObjectSet;
 use crate::codec::{CodecError, Coding, ReadLimits, read_file};
 use crate::geom::cell::{Cell, DIMS};
-use crate::geom::{Aabb, Frame};
+use crate::geom::{Aabb, Frame, trig};
 use crate::slices::TreeSlices;
 
 mod query_cull;
@@ -379,18 +379,23 @@ impl Frustum {
         let mut used = 1;
         let r0 = frame.r0;
         if r0.length() > Self::MIN_UP_ANGLE.sin() * frame.up.length() && r0.length().is_finite() {
+            // The side planes through the eye and the frustum's edges, in
+            // the orthonormal frame (f x u = r, r x u = -f, u x r = f):
+            // (f - r tx) x u, u x (f + r tx), (f + u ty) x r and
+            // r x (f - u ty), over their lengths.
             let (r, u, tx, ty) = (frame.r, frame.u, frame.tx, frame.ty);
+            let (len_x, len_y) = ((1.0 + tx * tx).sqrt(), (1.0 + ty * ty).sqrt());
             normals[1..].copy_from_slice(&[
-                (f - r * tx).cross(u),
-                u.cross(f + r * tx),
-                (f + u * ty).cross(r),
-                r.cross(f - u * ty),
+                (r + f * tx) / len_x,
+                (f * tx - r) / len_x,
+                (f * ty - u) / len_y,
+                (u + f * ty) / len_y,
             ]);
             used = 5;
         }
         let mut out = none;
         for n in &normals[..used] {
-            let n = n.normalize().as_vec3();
+            let n = n.as_vec3();
             // The eye of the box furthest behind the plane.
             let e = Vec3::select(n.cmpge(Vec3::ZERO), eyes.min, eyes.max);
             out.planes[out.count] = (n, n.dot(e));
@@ -500,8 +505,11 @@ fn frustum_angles_in(frame: &ViewFrame) -> AngularRanges {
         return cone_angles(f, tx.hypot(ty).atan());
     }
     let (r, u) = (frame.r, frame.u);
+    // The corners' directions, all of length sqrt(1 + tx^2 + ty^2) in the
+    // orthonormal frame: their unit z is their z over it.
     let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
-        .map(|(sx, sy)| (f + r * (sx * tx) + u * (sy * ty)).normalize());
+        .map(|(sx, sy)| f + r * (sx * tx) + u * (sy * ty));
+    let inv_len = 1.0 / (1.0 + tx * tx + ty * ty).sqrt();
     // A pole inside, or on the boundary to within the padding.
     let inside = |v: DVec3| {
         let z = v.dot(f);
@@ -512,34 +520,38 @@ fn frustum_angles_in(frame: &ViewFrame) -> AngularRanges {
     let (north, south) = (inside(DVec3::Z), inside(-DVec3::Z));
     // The z range of the unit directions (phi = acos z is monotone; acos is
     // accurate to ~1e-8 rad in f64 even next to the poles).
-    let mut zmin = corners.iter().map(|c| c.z).fold(f64::INFINITY, f64::min);
+    let mut zmin = corners
+        .iter()
+        .map(|c| c.z * inv_len)
+        .fold(f64::INFINITY, f64::min);
     let mut zmax = corners
         .iter()
-        .map(|c| c.z)
+        .map(|c| c.z * inv_len)
         .fold(f64::NEG_INFINITY, f64::max);
     // The edges' great circles, their planes from the frame (not from the
     // corners, which lose precision for wide views): x = +-tx (vertical
-    // edges, spanned by f + r x and u) and y = +-ty (spanned by f + u y
-    // and r); a circle's highest point counts if it lies on the edge.
+    // edges, spanned by f + r x and u, normal (f + r x) x u = r - x f) and
+    // y = +-ty (spanned by f + u y and r, normal (f + u y) x r = y f - u),
+    // of lengths sqrt(1 + x^2) and sqrt(1 + y^2); a circle's highest and
+    // lowest points, +-m / |m| with m = Z - n n.z (n the unit normal),
+    // count if they lie on the edge: in front (p . f > 0, so only one of
+    // the two) and within its half-width (both tests free of |m|).
+    let (len_x, len_y) = ((1.0 + tx * tx).sqrt(), (1.0 + ty * ty).sqrt());
     for s in [-1.0, 1.0] {
         let edges = [
-            ((f + r * (s * tx)).cross(u), u, ty),
-            ((f + u * (s * ty)).cross(r), r, tx),
+            (r - f * (s * tx), len_x, u, ty),
+            (f * (s * ty) - u, len_y, r, tx),
         ];
-        for (n, along, half) in edges {
-            let n = n.normalize();
-            let m = DVec3::Z - n * n.z;
-            if m.length() < 1e-12 {
+        for (n, len, along, half) in edges {
+            let m = DVec3::Z - n * (n.z / (len * len));
+            let m_len = m.length();
+            let front = m.dot(f);
+            if m_len < 1e-12 || front == 0.0 || m.dot(along).abs() > half * front.abs() {
                 continue;
             }
-            let m = m.normalize();
-            for p in [m, -m] {
-                let z = p.dot(f);
-                if z > 0.0 && p.dot(along).abs() <= half * z {
-                    zmin = zmin.min(p.z);
-                    zmax = zmax.max(p.z);
-                }
-            }
+            let z = if front > 0.0 { m.z } else { -m.z } / m_len;
+            zmin = zmin.min(z);
+            zmax = zmax.max(z);
         }
     }
     if north {
@@ -555,8 +567,11 @@ fn frustum_angles_in(frame: &ViewFrame) -> AngularRanges {
     if north || south || p0 < POLE_GUARD || p1 > std::f64::consts::PI - POLE_GUARD {
         return AngularRanges::one((-PI, PI, (p0.max(0.0)) as f32, (p1 as f32).min(PI)));
     }
-    // Theta: unwrap along the edges.
-    let th = corners.map(|v| v.y.atan2(v.x));
+    // Theta: unwrap along the edges. The corners' angles in f32 (the
+    // project's atan2, within 3e-7 rad, on coordinates rounded by 6e-8 of
+    // themselves: far inside the padding; near a pole, where theta is
+    // ill-conditioned, the answer above took every theta).
+    let th = trig::atan2(corners.map(|c| c.y as f32), corners.map(|c| c.x as f32)).map(f64::from);
     let mut t = th[0];
     let (mut tmin, mut tmax) = (t, t);
     for k in 1..4 {

@@ -130,12 +130,12 @@ impl Cull {
             // out in f32, which may round up by a few ulps.
             let slack = (f64::from(Frustum::ANGLE_SLACK) * far + 1e-6 * (1.0 + d.abs() + along))
                 * (1.0 + 1e-5);
-            // Two f32 steps lower still: `may_see` subtracts its slack from
-            // d in f32, which may round its threshold down by half a step.
-            // Past 1.8e19 an f32 length overflows and `may_see` keeps
-            // every box: so does the cull.
+            // Three f32 steps lower still: `may_see` subtracts its slack
+            // from d in f32, which may round its threshold down by half a
+            // step. Past 1.8e19 an f32 length overflows and `may_see`
+            // keeps every box: so does the cull.
             let keep = if far < 1.8e19 {
-                round_down(d - slack).next_down().next_down()
+                below(d - slack)
             } else {
                 f32::NEG_INFINITY
             };
@@ -206,10 +206,13 @@ impl Cull {
     }
 }
 
-/// `x` as an f32 not above it.
-fn round_down(x: f64) -> f32 {
-    let f = x as f32;
-    if f64::from(f) > x { f.next_down() } else { f }
+/// An f32 below the third f32 under `x` (at most `f32::MAX`), without a
+/// branch: `x` less 2^-21 of its size (four f32 steps or more: a step at
+/// size m is at most m 2^-23) and 2^-140 (for `x` near 0: 512 steps of
+/// the smallest f32), rounded to the nearest f32 (up by half a step at
+/// most), so at least 3.5 steps down where three steps reach at most 3.
+fn below(x: f64) -> f32 {
+    (x - x.abs() * 2f64.powi(-21) - 2f64.powi(-140)) as f32
 }
 
 /// The box that covers the scene's boxes: `None` when there are none (a
