@@ -97,8 +97,9 @@ pub(crate) struct CodedTree {
     root_set: Vec<u64>,
     /// The internal nodes, in preorder; empty when the root is a leaf.
     inner: Vec<Inner>,
-    /// The children's codes, least significant bit first, and one more
-    /// word of zeros (reads may look one word ahead).
+    /// The children's codes, least significant bit first, and two more
+    /// words of zeros (a read takes two words, from any position up to
+    /// the codes' end).
     code: Vec<u64>,
     /// The children's sets of the top levels' nodes, decoded: every walk
     /// passes there (a quarter of the nodes a view visits on the
@@ -159,6 +160,8 @@ impl Visitor for Leaves<'_> {
 /// Puts bits at the set bits of a mask, in order (`pdep`), and walks on
 /// with the same instruction.
 trait Deposit: Sized {
+    /// The low bits of `bits`, as many as `mask` has (the others are not
+    /// read), at the set bits of `mask`.
     fn deposit(bits: u64, mask: u64) -> u64;
 
     /// Walks the subtree of internal node `at` ([`CodedTree::visit`]).
@@ -176,6 +179,9 @@ struct Soft;
 impl Deposit for Soft {
     #[inline(always)]
     fn deposit(mut bits: u64, mut mask: u64) -> u64 {
+        if mask == u64::MAX {
+            return bits;
+        }
         let mut out = 0;
         while mask != 0 {
             let low = mask & mask.wrapping_neg();
@@ -222,15 +228,14 @@ impl Deposit for Bmi2 {
     }
 }
 
-/// The `n` (1 to 64) bits of `code` from bit `pos` (`code` ends with a
-/// word to spare).
+/// The 64 bits of `code` from bit `pos`, at most its end without the
+/// two words to spare it ends with: a deposit takes the ones it needs.
 #[inline(always)]
-fn read(code: &[u64], pos: usize, n: u32) -> u64 {
-    debug_assert!((1..=64).contains(&n));
+fn read(code: &[u64], pos: usize) -> u64 {
     let i = pos >> 6;
     // Two words as one (a double shift on x86).
     let two = u128::from(code[i]) | (u128::from(code[i + 1]) << 64);
-    ((two >> (pos & 63)) as u64) & (u64::MAX >> (64 - n))
+    (two >> (pos & 63)) as u64
 }
 
 /// Decodes the lighter child's `words` from `a`'s, its bits at `pos`;
@@ -244,14 +249,10 @@ fn lighter<D: Deposit>(
     words: std::ops::Range<usize>,
 ) -> usize {
     for w in words {
+        // No branch on the word: a deposit at no bits is 0.
         let m = a[w];
-        let n = m.count_ones();
-        l[w] = match m {
-            0 => 0,
-            u64::MAX => read(code, pos, 64),
-            _ => D::deposit(read(code, pos, n), m),
-        };
-        pos += n as usize;
+        l[w] = D::deposit(read(code, pos), m);
+        pos += m.count_ones() as usize;
     }
     pos
 }
@@ -269,14 +270,8 @@ fn heavier<D: Deposit>(
 ) {
     for w in words {
         let m = l[w];
-        let n = m.count_ones();
-        let kept = match m {
-            0 => 0,
-            u64::MAX => read(code, pos, 64),
-            _ => D::deposit(read(code, pos, n), m),
-        };
-        h[w] = (a[w] & !m) | kept;
-        pos += n as usize;
+        h[w] = (a[w] & !m) | D::deposit(read(code, pos), m);
+        pos += m.count_ones() as usize;
     }
 }
 
@@ -508,7 +503,8 @@ impl CodedTree {
         u32::try_from(pusher.len)
             .map_err(|_| CodecError::TooLarge("the coded sets pass 2^32 bits in memory".into()))?;
         let mut code = pusher.words;
-        code.push(0);
+        // Two words to spare: a read at the end takes two words.
+        code.extend([0, 0]);
         code.shrink_to_fit();
         inner.shrink_to_fit();
         cache.shrink_to_fit();
@@ -895,7 +891,7 @@ mod tests {
             let levels = [Some(0), Some(2), Some(64), None][trial % 4];
             let mut tree = CodedTree::with_cache(root, 10, objects, &nodes, levels).unwrap();
             if levels == Some(64) {
-                assert_eq!(tree.code, [0], "trial {trial}: nothing left coded");
+                assert_eq!(tree.code, [0, 0], "trial {trial}: nothing left coded");
             }
             let leaves: Vec<usize> = (0..nodes.len())
                 .filter(|&i| nodes[i].split.is_none())
@@ -994,10 +990,17 @@ mod tests {
             let mask: u64 = rng.random::<u64>() & rng.random::<u64>();
             let value: u64 = rng.random();
             let bits = extract(value, mask);
-            assert_eq!(Soft::deposit(bits, mask), value & mask);
-            #[cfg(target_arch = "x86_64")]
-            if std::is_x86_feature_detected!("bmi2") {
-                assert_eq!(Bmi2::deposit(bits, mask), value & mask);
+            // Bits above the mask's count are not read.
+            let junk = rng
+                .random::<u64>()
+                .checked_shl(mask.count_ones())
+                .unwrap_or(0);
+            for bits in [bits, bits | junk] {
+                assert_eq!(Soft::deposit(bits, mask), value & mask);
+                #[cfg(target_arch = "x86_64")]
+                if std::is_x86_feature_detected!("bmi2") {
+                    assert_eq!(Bmi2::deposit(bits, mask), value & mask);
+                }
             }
             let n = rng.random_range(0..=64u32);
             let v = if n == 64 {
@@ -1011,7 +1014,7 @@ mod tests {
         pusher.words.push(0);
         for (pos, v, n) in pushed {
             if n > 0 {
-                assert_eq!(read(&pusher.words, pos, n), v);
+                assert_eq!(read(&pusher.words, pos) & (u64::MAX >> (64 - n)), v);
             }
         }
         let _ = rng.next_u64();
