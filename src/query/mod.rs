@@ -379,23 +379,18 @@ impl Frustum {
         let mut used = 1;
         let r0 = frame.r0;
         if r0.length() > Self::MIN_UP_ANGLE.sin() * frame.up.length() && r0.length().is_finite() {
-            // The side planes through the eye and the frustum's edges, in
-            // the orthonormal frame (f x u = r, r x u = -f, u x r = f):
-            // (f - r tx) x u, u x (f + r tx), (f + u ty) x r and
-            // r x (f - u ty), over their lengths.
             let (r, u, tx, ty) = (frame.r, frame.u, frame.tx, frame.ty);
-            let (len_x, len_y) = ((1.0 + tx * tx).sqrt(), (1.0 + ty * ty).sqrt());
             normals[1..].copy_from_slice(&[
-                (r + f * tx) / len_x,
-                (f * tx - r) / len_x,
-                (f * ty - u) / len_y,
-                (u + f * ty) / len_y,
+                (f - r * tx).cross(u),
+                u.cross(f + r * tx),
+                (f + u * ty).cross(r),
+                r.cross(f - u * ty),
             ]);
             used = 5;
         }
         let mut out = none;
         for n in &normals[..used] {
-            let n = n.as_vec3();
+            let n = n.normalize().as_vec3();
             // The eye of the box furthest behind the plane.
             let e = Vec3::select(n.cmpge(Vec3::ZERO), eyes.min, eyes.max);
             out.planes[out.count] = (n, n.dot(e));
@@ -436,7 +431,8 @@ impl Frustum {
 /// Angular boxes that contain every direction of the frustum looking along
 /// `dir` with `up`, `fov_x` by `fov_y` radians: one box, or two when the
 /// theta range crosses +-pi. A frustum containing (or passing within 0.01
-/// rad of) a pole covers every theta. Bounds are padded by 1e-4 rad.
+/// rad of) a pole covers every theta. Bounds are padded by 1e-4 rad (theta's
+/// by 1.02e-4, phi's by 1.00001e-4: see the code).
 ///
 /// The frustum's directions are a spherical quadrilateral. Theta is
 /// monotone along any great-circle arc that misses the poles, so the theta
@@ -560,17 +556,22 @@ fn frustum_angles_in(frame: &ViewFrame) -> AngularRanges {
     if south {
         zmin = -1.0;
     }
+    // PHI_PAD more: the closed forms above round otherwise than the
+    // normalisations they replace (by 3e-11 rad at most, in a review's
+    // 300,000 frames), and no answer may lack an object theirs had.
     let (p0, p1) = (
-        zmax.clamp(-1.0, 1.0).acos() - PAD,
-        zmin.clamp(-1.0, 1.0).acos() + PAD,
+        zmax.clamp(-1.0, 1.0).acos() - PAD - PHI_PAD,
+        zmin.clamp(-1.0, 1.0).acos() + PAD + PHI_PAD,
     );
     if north || south || p0 < POLE_GUARD || p1 > std::f64::consts::PI - POLE_GUARD {
         return AngularRanges::one((-PI, PI, (p0.max(0.0)) as f32, (p1 as f32).min(PI)));
     }
     // Theta: unwrap along the edges. The corners' angles in f32 (the
     // project's atan2, within 3e-7 rad, on coordinates rounded by 6e-8 of
-    // themselves: far inside the padding; near a pole, where theta is
-    // ill-conditioned, the answer above took every theta).
+    // themselves; near a pole, where theta is ill-conditioned, the answer
+    // above took every theta), padded by THETA_PAD more: the bounds hold
+    // those of libm's f64 atan2 (rounding to f32 is monotone), so no
+    // answer lacks an object that answer had.
     let th = trig::atan2(corners.map(|c| c.y as f32), corners.map(|c| c.x as f32)).map(f64::from);
     let mut t = th[0];
     let (mut tmin, mut tmax) = (t, t);
@@ -579,11 +580,18 @@ fn frustum_angles_in(frame: &ViewFrame) -> AngularRanges {
         tmin = tmin.min(t);
         tmax = tmax.max(t);
     }
-    theta_boxes(tmin - PAD, tmax + PAD, p0, p1)
+    theta_boxes(tmin - PAD - THETA_PAD, tmax + PAD + THETA_PAD, p0, p1)
 }
 
 /// Padding of the angular bounds, radians.
 const PAD: f64 = 1e-4;
+
+/// More padding of a frustum's theta bounds, radians: four times what its
+/// f32 `atan2` may be off by ([`frustum_angles`]).
+const THETA_PAD: f64 = 2e-6;
+
+/// More padding of a frustum's phi bounds, radians ([`frustum_angles`]).
+const PHI_PAD: f64 = 1e-9;
 
 /// How close to a pole a view may come before its theta range is taken as
 /// all of it (theta is ill-conditioned there).
