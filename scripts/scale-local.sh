@@ -3,7 +3,8 @@
 # notes/scale.md): the procedural apartment replicated 1, 4, 16 and 64
 # times, and San Francisco (when ../shared/scenes has it) tiled 1, 4 (2x2)
 # and, with VIS5D_SCALE_BIG=1, 16 (4x4) times by `vis5d scene --tile`.
-# For each: objects, triangles, build seconds, leaves, rays, peak memory
+# For each: objects, triangles, the fixed top's levels (chosen from the
+# scene: --subtree-objects), build seconds, leaves, rays, peak memory
 # (GNU time's maximum resident set), and the seconds per object and per
 # leaf. One default build each (--dry-run: nothing written), all cores.
 #
@@ -36,7 +37,7 @@ if [ -f "$sf" ]; then
         rows+=("$tmp/san_francisco_x$n.obj")
     done
 fi
-printf '%-22s %8s %10s %9s %7s %12s %9s %11s %10s\n' scene objects triangles "build s" leaves rays "peak MiB" "ms/object" "ms/leaf"
+printf '%-22s %8s %10s %4s %9s %7s %12s %9s %11s %10s\n' scene objects triangles top "build s" leaves rays "peak MiB" "ms/object" "ms/leaf"
 for m in "${rows[@]}"; do
     /usr/bin/time -f '%M' -o "$tmp/rss" "$bin" build "$m" --dry-run --json "${threads[@]}" \
         > "$tmp/b.json" 2> /dev/null
@@ -45,7 +46,7 @@ import json, sys
 name, path, rss_kib = sys.argv[1], sys.argv[2], int(sys.argv[3])
 j = json.load(open(path))
 s = j["seconds"]["build"]
-print(f"{name:<22} {j['objects']:>8} {j['triangles']:>10} {s:>9.2f} {j['leaves']:>7} "
+print(f"{name:<22} {j['objects']:>8} {j['triangles']:>10} {j['top_levels']:>4} {s:>9.2f} {j['leaves']:>7} "
       f"{j['rays_cast']:>12} {rss_kib / 1024:>9.0f} {1e3 * s / j['objects']:>11.3f} "
       f"{1e3 * s / j['leaves']:>10.2f}")
 PY

@@ -18,6 +18,11 @@ use super::BuildParams;
 /// The most fixed levels: 2^10 = 1,024 subtrees.
 pub const MAX_TOP_LEVELS: u32 = 10;
 
+/// [`BuildParams::subtree_objects`]'s default: more objects than any
+/// real scene measured has (San Francisco: 2,368), so that their builds
+/// keep one root and their files their bytes.
+pub const DEFAULT_SUBTREE_OBJECTS: u64 = 4096;
+
 /// The stream family of the subtrees' seeds.
 pub(super) const TOP_STREAM: u64 = 0x746f_705f_6c65_7665;
 
@@ -355,10 +360,10 @@ pub fn merge(parts: Vec<crate::codec::V5dPart>) -> Result<crate::codec::V5dFile,
 }
 
 impl BuildParams {
-    /// The seed of subtree `index` of the fixed top: the build's seed
-    /// itself without a fixed top.
-    pub(super) fn subtree_seed(&self, index: usize) -> u64 {
-        if self.top_levels == 0 {
+    /// The seed of subtree `index` of a fixed top of `fixed` levels: the
+    /// build's seed itself without a fixed top.
+    pub(super) fn subtree_seed(&self, fixed: u32, index: usize) -> u64 {
+        if fixed == 0 {
             self.seed
         } else {
             super::mix(self.seed, TOP_STREAM ^ index as u64)

@@ -52,7 +52,8 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 pub use builder_top::{
-    GraftError, MAX_TOP_LEVELS, MergeError, deal, graft, merge, subtree_cells, subtree_costs,
+    DEFAULT_SUBTREE_OBJECTS, GraftError, MAX_TOP_LEVELS, MergeError, deal, graft, merge,
+    subtree_cells, subtree_costs,
 };
 pub use builder_verify::{PixelError, VerifyParams, pixel_error};
 
@@ -198,8 +199,20 @@ pub struct BuildParams {
     /// object a candidate, no rays inherited), so that shards of a build
     /// can make them apart and [`graft`] them into this very tree
     /// (`vis5d build --shard`, `vis5d merge`; notes/scale.md). 0 (the
-    /// default): one root, split by E(A, B) like every other node.
+    /// default): one root, split by E(A, B) like every other node, unless
+    /// the scene has more than [`BuildParams::subtree_objects`] objects.
+    /// The build uses [`BuildParams::fixed_levels`].
     pub top_levels: u32,
+    /// The most objects a subtree of the fixed top holds, on average,
+    /// when the top is chosen from the scene: a scene of n objects with a
+    /// surface has at least s levels fixed, s the fewest cuts that leave
+    /// at most this many objects a subtree (at most [`MAX_TOP_LEVELS`]
+    /// and `max_depth`; [`BuildParams::scene_levels`]), so that a big
+    /// world's plain build is already in subtrees that shards build apart
+    /// and checkpoints save. 0 levels, one root, for every scene up to
+    /// this many objects (every real scene measured: their files keep
+    /// their bytes).
+    pub subtree_objects: u64,
 }
 
 impl Default for BuildParams {
@@ -234,6 +247,7 @@ impl Default for BuildParams {
             seed: 1,
             max_nodes: 1 << 20,
             top_levels: 0,
+            subtree_objects: DEFAULT_SUBTREE_OBJECTS,
         }
     }
 }
@@ -324,7 +338,7 @@ impl BuildParams {
             expected: expected.to_owned(),
             value: value.to_string(),
         };
-        let counts: [(&'static str, u64, std::ops::RangeInclusive<u64>); 7] = [
+        let counts: [(&'static str, u64, std::ops::RangeInclusive<u64>); 8] = [
             (
                 "internal_miss_factor",
                 self.internal_miss_factor.into(),
@@ -338,6 +352,7 @@ impl BuildParams {
                 1..=10_000_000,
             ),
             ("max_nodes", self.max_nodes, 1..=u32::MAX as u64),
+            ("subtree_objects", self.subtree_objects, 1..=u32::MAX as u64),
             ("retest_rays", self.retest_rays.into(), 0..=100_000),
             ("edge_rays", self.edge_rays.into(), 0..=64),
         ];
@@ -405,6 +420,22 @@ impl BuildParams {
             ));
         }
         Ok(())
+    }
+
+    /// The levels `scene` fixes ([`BuildParams::subtree_objects`]): the
+    /// fewest cuts s with the objects that have a surface at most
+    /// `subtree_objects` 2^s, at most [`MAX_TOP_LEVELS`] and `max_depth`.
+    pub fn scene_levels(&self, scene: &Scene) -> u32 {
+        let objects = scene.surface_objects().count() as u64;
+        let most = MAX_TOP_LEVELS.min(self.max_depth);
+        let per = self.subtree_objects.max(1);
+        (0..most).find(|&s| objects <= per << s).unwrap_or(most)
+    }
+
+    /// The levels of the fixed top for `scene`: [`BuildParams::top_levels`]
+    /// or [`BuildParams::scene_levels`], the more.
+    pub fn fixed_levels(&self, scene: &Scene) -> u32 {
+        self.top_levels.max(self.scene_levels(scene))
     }
 
     /// The spatial box of the root cell for `scene`.
@@ -477,8 +508,9 @@ impl BuildParams {
         let mut text = lines.join("\n") + "\n";
         // Only where used, so that the files of builds without a fixed top
         // keep their bytes.
-        if self.top_levels > 0 {
-            text += &format!("top_levels={}\n", self.top_levels);
+        let fixed = self.fixed_levels(scene);
+        if fixed > 0 {
+            text += &format!("top_levels={fixed}\n");
         }
         text
     }
@@ -646,7 +678,7 @@ pub fn build(
     let (parts, stats) = build_recording(scene, tracer, params, None, progress, None)?;
     let trees: Vec<VisTree> = parts.into_iter().map(|(_, t)| t).collect();
     let root = Cell::all_directions(params.root_box(scene));
-    let tree = graft(root, params.top_levels, params.grid_bits, &trees)
+    let tree = graft(root, params.fixed_levels(scene), params.grid_bits, &trees)
         .expect("the subtrees were built for their places");
     Ok((tree, stats))
 }
@@ -655,7 +687,7 @@ pub fn build(
 /// (indices in [`subtree_cells`]' order), for `scene` and `params`.
 pub fn shard_subtrees(scene: &Scene, params: &BuildParams, shard: u32, shards: u32) -> Vec<u32> {
     let root = Cell::all_directions(params.root_box(scene));
-    let cells = subtree_cells(root, params.top_levels, params.grid_bits);
+    let cells = subtree_cells(root, params.fixed_levels(scene), params.grid_bits);
     deal(&subtree_costs(scene, &cells), shards)
         .into_iter()
         .enumerate()
@@ -735,9 +767,10 @@ pub fn build_resuming(
     record: Option<&crate::raylog::RayLog>,
 ) -> Result<(Vec<(u32, VisTree)>, BuildStats), BuildError> {
     params.validate()?;
+    let fixed = params.fixed_levels(scene);
     let start = Instant::now();
     let root = Cell::all_directions(params.root_box(scene));
-    let cells = subtree_cells(root, params.top_levels, params.grid_bits);
+    let cells = subtree_cells(root, fixed, params.grid_bits);
     let wanted: Vec<u32> = match shard {
         None => (0..cells.len() as u32).collect(),
         Some((i, n)) => shard_subtrees(scene, params, i, n),
@@ -802,7 +835,7 @@ pub fn build_resuming(
             .saturating_mul(params.internal_miss_factor),
         done: AtomicU64::new(0),
         // The fixed top's nodes, its subtrees' roots among them.
-        nodes: AtomicU64::new((2u64 << params.top_levels) - 1),
+        nodes: AtomicU64::new((2u64 << fixed) - 1),
         over_budget: AtomicBool::new(false),
         progress,
         record,
@@ -817,8 +850,8 @@ pub fn build_resuming(
             let built = builder_node::build_node(
                 &ctx,
                 cells[j as usize],
-                builder_node::NodeState::top(params.top_levels),
-                params.subtree_seed(j as usize),
+                builder_node::NodeState::top(fixed),
+                params.subtree_seed(fixed, j as usize),
                 &candidates,
                 &ObjectSet::new(scene.objects().len()),
                 Vec::new(),
@@ -902,6 +935,47 @@ pub(crate) fn mix(a: u64, b: u64) -> u64 {
 mod tests {
     use super::*;
     use crate::scene::procedural::{SceneKind, generate};
+
+    /// The fixed top from the scene: the fewest cuts that leave at most
+    /// `subtree_objects` objects a subtree, within 10 and `max_depth`,
+    /// and never fewer than `top_levels`.
+    #[test]
+    fn a_scene_of_many_objects_fixes_its_top() {
+        let scene = generate(SceneKind::Apartment, 1, 1);
+        let n = scene.surface_objects().count() as u64;
+        assert!(n > 100);
+        let levels = |subtree_objects: u64, top_levels: u32, max_depth: u32| {
+            let params = BuildParams {
+                subtree_objects,
+                top_levels,
+                max_depth,
+                ..BuildParams::default()
+            };
+            (params.scene_levels(&scene), params.fixed_levels(&scene))
+        };
+        assert_eq!(levels(DEFAULT_SUBTREE_OBJECTS, 0, 12), (0, 0));
+        assert_eq!(levels(n, 0, 12), (0, 0));
+        assert_eq!(levels(n - 1, 0, 12), (1, 1));
+        assert_eq!(levels(n.div_ceil(2), 0, 12), (1, 1));
+        assert_eq!(levels(n.div_ceil(2) - 1, 0, 12), (2, 2));
+        assert_eq!(levels(n.div_ceil(4), 3, 12), (2, 3));
+        let all = 64 - (n - 1).leading_zeros();
+        assert_eq!(levels(1, 0, 12), (all, all));
+        assert_eq!(levels(1, 0, 4), (4, 4));
+        let block = generate(SceneKind::Apartment, 1, 18);
+        let one = BuildParams {
+            subtree_objects: 1,
+            ..BuildParams::default()
+        };
+        assert_eq!(one.scene_levels(&block), MAX_TOP_LEVELS);
+        let text = BuildParams::default().to_text(&scene);
+        assert!(!text.contains("top_levels"), "one root: the old text");
+        let fixed = BuildParams {
+            subtree_objects: n - 1,
+            ..BuildParams::default()
+        };
+        assert!(fixed.to_text(&scene).ends_with("top_levels=1\n"));
+    }
 
     #[test]
     fn neighbours_on_the_grid_are_the_pairs_of_overlapping_grown_boxes() {

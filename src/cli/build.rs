@@ -236,9 +236,19 @@ pub struct BuildArgs {
     /// roots of their own (every object a candidate): what lets `--shard`
     /// split the build and `vis5d merge` put it back together byte for
     /// byte [0 to 10, at most --max-depth; 0: one root, split by E(A, B)
-    /// like every node].
+    /// like every node]. A scene of more objects than --subtree-objects
+    /// has more levels fixed, whatever this says.
     #[arg(conflicts_with = "conservative", long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=10))]
     top_levels: u32,
+    /// Fix the top from the scene: a scene of more objects (with a
+    /// surface) than this is cut as --top-levels cuts, into the fewest
+    /// 2^s subtrees of at most this many objects on average (s at most 10
+    /// and at most --max-depth), so that a big world's plain build is one
+    /// that --shard splits and --checkpoint resumes. The tree below is
+    /// built as without (the same depth and smallest cell). Scenes up to
+    /// this many objects keep one root [1 to 4,294,967,295].
+    #[arg(conflicts_with = "conservative", long, default_value_t = BuildParams::default().subtree_objects, value_parser = clap::value_parser!(u64).range(1..=4_294_967_295))]
+    subtree_objects: u64,
     /// Build only shard I of N (I from 0 to N-1): the subtrees of the
     /// fixed top (--top-levels) dealt to it by their estimated cost, so
     /// that shards take about the same time. Writes a part (to -o, else
@@ -329,6 +339,7 @@ impl BuildArgs {
             seed: self.seed,
             max_nodes: self.max_nodes,
             top_levels: self.top_levels,
+            subtree_objects: self.subtree_objects,
         }
     }
 }
@@ -346,6 +357,9 @@ struct BuildReport {
     up: String,
     threads: usize,
     seed: u64,
+    /// The fixed top's levels (`--top-levels`, or more for a scene of
+    /// more objects than `--subtree-objects`).
+    top_levels: u32,
     #[serde(flatten)]
     tree: ShapeReport,
     rays_cast: u64,
@@ -518,7 +532,7 @@ pub fn run(args: &BuildArgs) -> Result<()> {
     bar.finish_and_clear();
     let trees: Vec<_> = subtrees.into_iter().map(|(_, t)| t).collect();
     let root = vis5d::geom::cell::Cell::all_directions(params.root_box(&scene));
-    let tree = vis5d::builder::graft(root, params.top_levels, params.grid_bits, &trees)
+    let tree = vis5d::builder::graft(root, params.fixed_levels(&scene), params.grid_bits, &trees)
         .map_err(|e| anyhow::anyhow!("internal error: {e}"))?;
     tree.validate()
         .map_err(|e| anyhow::anyhow!("internal error: the built tree is inconsistent: {e}"))?;
@@ -677,7 +691,7 @@ fn run_shard(
     bar.finish_and_clear();
     let count = subtrees.len();
     let part = codec::V5dPart {
-        top_levels: params.top_levels,
+        top_levels: params.fixed_levels(scene),
         shard,
         shards,
         coding: args.coding,
@@ -704,7 +718,7 @@ fn run_shard(
             "file": args.file.display().to_string(),
             "shard": shard,
             "shards": shards,
-            "top_levels": params.top_levels,
+            "top_levels": params.fixed_levels(scene),
             "subtrees": count,
             "rays_cast": stats.rays(),
             "seconds": seconds,
@@ -717,7 +731,7 @@ fn run_shard(
         writeln!(
             out,
             "shard {shard}/{shards}: {count} of the {} subtrees, {} rays, {seconds:.2} s{}",
-            1u64 << params.top_levels,
+            1u64 << params.fixed_levels(scene),
             stats.rays(),
             if args.dry_run {
                 String::new()
@@ -1074,6 +1088,7 @@ fn build_report(
         up: frame.up.to_string(),
         threads,
         seed: params.seed,
+        top_levels: params.fixed_levels(scene),
         tree: s.into(),
         rays_cast: stats.rays(),
         cell_rays: stats.cell_rays,

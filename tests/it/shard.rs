@@ -60,6 +60,49 @@ fn shards_merge_into_the_file_a_single_build_writes() {
     }
 }
 
+/// A scene of more objects than `--subtree-objects` fixes its top
+/// itself: its plain build is the one with those levels given, and its
+/// shards, given no levels, merge into it.
+#[test]
+fn a_scene_of_many_objects_shards_without_being_told() {
+    let dir = tempfile::tempdir().unwrap();
+    // The city's 211 objects, at most 60 a subtree: 2 levels.
+    let model = committed("city.obj");
+    let (told, plain) = (dir.path().join("told.v5d"), dir.path().join("plain.v5d"));
+    build(&model, &["--top-levels", "2"], &told);
+    build(&model, &["--subtree-objects", "60"], &plain);
+    let want = std::fs::read(&told).unwrap();
+    assert!(
+        std::fs::read(&plain).unwrap() == want,
+        "the top the scene fixes is not the one --top-levels 2 fixes"
+    );
+    let parts: Vec<PathBuf> = (0..3)
+        .map(|i| {
+            let part = dir.path().join(format!("city.{i}of3.v5dpart"));
+            let shard = format!("{i}/3");
+            build(
+                &model,
+                &["--subtree-objects", "60", "--shard", &shard],
+                &part,
+            );
+            part
+        })
+        .collect();
+    let merged = dir.path().join("merged.v5d");
+    let o = merge(&parts, &merged);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(
+        std::fs::read(&merged).unwrap() == want,
+        "the merged file differs"
+    );
+    // Fewer objects than that: one root, the bytes of a build without.
+    let one = dir.path().join("one.v5d");
+    build(&model, &["--subtree-objects", "211"], &one);
+    let default = dir.path().join("default.v5d");
+    build(&model, &[], &default);
+    assert!(std::fs::read(&one).unwrap() == std::fs::read(&default).unwrap());
+}
+
 #[test]
 fn merge_refuses_what_is_not_one_whole_build() {
     let dir = tempfile::tempdir().unwrap();
