@@ -94,6 +94,12 @@ pub struct ReportArgs {
     /// 32 x 32) [1 to the resolution].
     #[arg(long, default_value_t = 32)]
     grid_cell: u32,
+    /// Pictures of the first N views beside the page (`images/`, PNG):
+    /// the scene in flat shades by object, the pixels of the objects the
+    /// vis5d tree dropped in red, each shown small on the page and full
+    /// size on a click [0 (none) to 1000].
+    #[arg(long, default_value_t = 8)]
+    pictures: usize,
 }
 
 impl ReportArgs {
@@ -108,6 +114,7 @@ impl ReportArgs {
             grid_cell: self.grid_cell,
             oracle_cell: self.oracle_cell,
             slices: self.slices,
+            pictures: self.pictures,
         };
         params.validate().map_err(|e| match &e {
             ReportError::Parameter { name, .. } => anyhow!("{}: {e}", flag(name)),

@@ -1,6 +1,7 @@
 //! The report's outputs: `report.json` (every figure), `report.md` (the
-//! tables) and `index.html` (the tables and SVG plots, no JavaScript),
-//! from an [`Experiment`].
+//! tables), `index.html` (the tables, SVG plots and pictures, no
+//! JavaScript) and `images/` (the pictures as PNG), from an
+//! [`Experiment`].
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -10,7 +11,7 @@ use plotters::prelude::*;
 use serde::Serialize;
 use vis5d::codec::{Coding, V5dFile, code_size};
 use vis5d::query::View;
-use vis5d::report::{Experiment, GridCost, MethodSummary, ReportParams};
+use vis5d::report::{DROPPED, Experiment, GridCost, Method, MethodSummary, ReportParams, picture};
 use vis5d::scene::Scene;
 
 use crate::common::World;
@@ -67,6 +68,28 @@ struct TreeJson {
     codings: Vec<CodingJson>,
 }
 
+/// One picture of a view: its files (relative to the report's folder)
+/// and what it shows of the vis5d tree's answer.
+#[derive(Serialize)]
+struct PictureJson {
+    view: usize,
+    /// Full size.
+    file: String,
+    /// The thumbnail on the page.
+    small: String,
+    small_size: [u32; 2],
+    /// Pixels painted red: the objects the tree dropped.
+    dropped_pixels: u64,
+    /// Objects seen, not drawn.
+    dropped_objects: usize,
+    /// Objects seen in the view.
+    seen_objects: usize,
+    /// Objects the tree draws.
+    drawn_objects: usize,
+    /// Objects drawn but not seen (hidden, or outside the image).
+    drawn_hidden: usize,
+}
+
 #[derive(Serialize)]
 struct ReportJson {
     scene: String,
@@ -81,6 +104,7 @@ struct ReportJson {
     oracle_rasteriser: Option<String>,
     grid_cell_pixels: u32,
     grid_costs: Vec<GridCost>,
+    pictures: Vec<PictureJson>,
 }
 
 /// Where the report's tree came from, for the page.
@@ -195,13 +219,42 @@ pub fn write(dir: &Path, page: &Page) -> Result<Vec<(&'static str, MethodSummary
         oracle_rasteriser: e.oracle_rasteriser.clone(),
         grid_cell_pixels: params.grid_cell,
         grid_costs: e.grid_costs.clone(),
+        pictures: Vec::new(),
     };
-    write_files(dir, &report, e)?;
+    let mut report = report;
+    let images = pictures(e, &mut report)?;
+    write_files(dir, &report, e, &images)?;
     Ok(report
         .methods
         .into_iter()
         .map(|m| (m.name, m.summary))
         .collect())
+}
+
+/// What the pictures show, for both pages.
+const PICTURES_LEGEND: &str = "The first views as the ground truth sees them (one ray per pixel), \
+     each object in a flat shade of its own, nothing in dark grey, and in red the pixels of the \
+     objects the vis5d tree does not draw: what would pop. Click a picture for its full size.";
+
+/// A picture's title: its view.
+fn picture_title(p: &PictureJson) -> String {
+    format!("View {}", p.view)
+}
+
+/// A picture's caption: the tree's answer for its view.
+fn picture_caption(p: &PictureJson) -> String {
+    let dropped = match p.dropped_objects {
+        0 => "none dropped".to_string(),
+        n => format!(
+            "{n} dropped ({} pixel{} in red)",
+            p.dropped_pixels,
+            if p.dropped_pixels == 1 { "" } else { "s" }
+        ),
+    };
+    format!(
+        "{} objects seen; the tree draws {}: {dropped}, {} drawn but hidden.",
+        p.seen_objects, p.drawn_objects, p.drawn_hidden
+    )
 }
 
 /// A share for people: "0" when exactly zero, else three significant
@@ -395,10 +448,69 @@ fn html_escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
-/// The files a report writes into its folder.
+/// The files a report writes into its folder (and its pictures, in
+/// [`IMAGES`]).
 pub const OUTPUTS: [&str; 3] = ["report.json", "report.md", "index.html"];
 
-fn write_files(dir: &Path, r: &ReportJson, e: &Experiment) -> Result<()> {
+/// The folder of the pictures, in the report's.
+pub const IMAGES: &str = "images";
+
+/// The longest side of a picture's thumbnail on the page, in pixels.
+const THUMBNAIL: u32 = 200;
+
+/// The pictures of the views whose ID buffers the experiment kept: the
+/// files' paths (relative to the report's folder) and PNG bytes, full
+/// size and thumbnail; their figures go into `r.pictures`.
+fn pictures(e: &Experiment, r: &mut ReportJson) -> Result<Vec<(String, Vec<u8>)>> {
+    let tree = e
+        .method(Method::Tree)
+        .ok_or_else(|| anyhow!("internal error: the tree's row did not run"))?;
+    let mut files = Vec::new();
+    for (view, ids) in e.pictures.iter().enumerate() {
+        let dropped = &tree.missed[view];
+        let full = picture(ids, dropped);
+        let small = full.shrunk(THUMBNAIL);
+        let (file, small_file) = (
+            format!("{IMAGES}/view-{view:03}.png"),
+            format!("{IMAGES}/view-{view:03}-small.png"),
+        );
+        let metrics = &tree.per_view[view];
+        let seen = e.truths[view].seen.len();
+        r.pictures.push(PictureJson {
+            view,
+            file: file.clone(),
+            small: small_file.clone(),
+            small_size: [small.width, small.height],
+            dropped_pixels: full.count(DROPPED),
+            dropped_objects: dropped.len(),
+            seen_objects: seen,
+            drawn_objects: metrics.objects,
+            drawn_hidden: metrics.objects - (seen - dropped.len()),
+        });
+        files.push((file, png_bytes(&full)?));
+        files.push((small_file, png_bytes(&small)?));
+    }
+    Ok(files)
+}
+
+/// `p` as a PNG file (8-bit RGB).
+fn png_bytes(p: &vis5d::report::Picture) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    let mut encoder = png::Encoder::new(&mut out, p.width, p.height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header()?;
+    writer.write_image_data(&p.rgb)?;
+    writer.finish()?;
+    Ok(out)
+}
+
+fn write_files(
+    dir: &Path,
+    r: &ReportJson,
+    e: &Experiment,
+    images: &[(String, Vec<u8>)],
+) -> Result<()> {
     let truths = &e.truths;
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
@@ -547,6 +659,18 @@ fn write_files(dir: &Path, r: &ReportJson, e: &Experiment) -> Result<()> {
     for m in &r.methods {
         writeln!(md, "- **{}**: {}", m.name, m.description)?;
     }
+    if !r.pictures.is_empty() {
+        writeln!(md, "\n## Pictures\n\n{PICTURES_LEGEND}\n")?;
+        for p in &r.pictures {
+            writeln!(
+                md,
+                "- [{}]({}): {}",
+                picture_title(p),
+                p.file,
+                picture_caption(p)
+            )?;
+        }
+    }
 
     // The page.
     let mut series: Vec<(&str, Vec<f64>)> = r
@@ -630,7 +754,8 @@ fn write_files(dir: &Path, r: &ReportJson, e: &Experiment) -> Result<()> {
         html,
         "<style>body{{font-family:sans-serif;max-width:64rem;margin:2rem auto;padding:0 1rem;color:#222}}\
          table{{border-collapse:collapse;margin:1rem 0}}th,td{{border:1px solid #ccc;padding:.3rem .6rem;text-align:right}}\
-         th:first-child,td:first-child{{text-align:left}}figure{{margin:1.5rem 0}}figcaption{{color:#555;font-size:.9rem}}.legend{{color:#444;font-size:.9rem}}</style></head><body>"
+         th:first-child,td:first-child{{text-align:left}}figure{{margin:1.5rem 0}}\
+         .pictures{{display:flex;flex-wrap:wrap;gap:1rem}}.pictures figure{{margin:0;width:200px}}.pictures img{{image-rendering:pixelated;border:1px solid #ccc}}figcaption{{color:#555;font-size:.9rem}}.legend{{color:#444;font-size:.9rem}}</style></head><body>"
     )?;
     writeln!(html, "<h1>vis5d report: {}</h1>", html_escape(&r.scene))?;
     writeln!(
@@ -673,6 +798,28 @@ fn write_files(dir: &Path, r: &ReportJson, e: &Experiment) -> Result<()> {
         )?;
     }
     writeln!(html, "</ul>")?;
+    if !r.pictures.is_empty() {
+        writeln!(
+            html,
+            "<h2>Pictures</h2><p class=\"legend\">{}</p><div class=\"pictures\">",
+            html_escape(PICTURES_LEGEND)
+        )?;
+        for p in &r.pictures {
+            writeln!(
+                html,
+                "<figure id=\"view-{view}\"><a href=\"{file}\"><img src=\"{small}\" width=\"{w}\" \
+                 height=\"{h}\" alt=\"{title}\"></a><figcaption><b>{title}</b>: {caption}</figcaption></figure>",
+                view = p.view,
+                file = p.file,
+                small = p.small,
+                w = p.small_size[0],
+                h = p.small_size[1],
+                title = html_escape(&picture_title(p)),
+                caption = html_escape(&picture_caption(p)),
+            )?;
+        }
+        writeln!(html, "</div>")?;
+    }
     let figure = |html: &mut String, id: &str, svg: &str, caption: &str| {
         writeln!(
             html,
@@ -716,9 +863,21 @@ fn write_files(dir: &Path, r: &ReportJson, e: &Experiment) -> Result<()> {
         "The tree's sets coded three ways (papers/003 sec. 6).",
     )?;
     writeln!(html, "</body></html>")?;
-    // The three files together: all written before any is replaced.
-    let files = OUTPUTS.map(|name| dir.join(name));
-    let contents: [&[u8]; 3] = [&json, md.as_bytes(), html.as_bytes()];
+    // The files together: all written before any is replaced.
+    if !images.is_empty() {
+        let folder = dir.join(IMAGES);
+        std::fs::create_dir_all(&folder)
+            .with_context(|| format!("{}: cannot create the folder", folder.display()))?;
+    }
+    let files: Vec<std::path::PathBuf> = OUTPUTS
+        .iter()
+        .map(|name| dir.join(name))
+        .chain(images.iter().map(|(name, _)| dir.join(name)))
+        .collect();
+    let contents: Vec<&[u8]> = [json.as_slice(), md.as_bytes(), html.as_bytes()]
+        .into_iter()
+        .chain(images.iter().map(|(_, bytes)| bytes.as_slice()))
+        .collect();
     let pairs: Vec<(&Path, &[u8])> = files.iter().map(|p| p.as_path()).zip(contents).collect();
     vis5d::atomic_write::write_atomic_all(&pairs)
         .with_context(|| format!("{}: cannot write the report", dir.display()))?;

@@ -21,13 +21,19 @@
 //!   [`Experiment`]; [`MethodRun::summary`] gives a method's figures over
 //!   the views.
 //!
+//! - **Pictures** ([`picture`]): the ID buffers of the first views in
+//!   flat shades by object, the objects a method dropped in red.
+//!
 //! The command (`src/cli/report.rs`) loads the scene and the tree, runs the
-//! experiment, and writes the page, the JSON and the Markdown.
+//! experiment, and writes the page, the JSON, the Markdown and the
+//! pictures.
 
+mod report_image;
 mod report_metrics;
 mod report_run;
 
-pub use report_metrics::{MethodSummary, ViewMetrics, ViewTruth, frustum_set, truth};
+pub use report_image::{BACKGROUND, DROPPED, Picture, object_shade, picture};
+pub use report_metrics::{MethodSummary, ViewMetrics, ViewTruth, frustum_set, truth, truth_of};
 pub use report_run::{
     Experiment, GridCost, Method, MethodRun, Oracles, ReportError, ReportParams, Trees, run,
 };

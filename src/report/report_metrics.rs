@@ -32,7 +32,11 @@ impl ViewTruth {
 /// Renders the ID buffer of `camera` ([`IdBuffer`]: one ray per pixel
 /// centre) and counts each object's pixels.
 pub fn truth(scene: &Scene, tracer: &Tracer, camera: &Camera) -> ViewTruth {
-    let ids = IdBuffer::render(tracer, camera);
+    truth_of(scene, &IdBuffer::render(tracer, camera))
+}
+
+/// The ground truth of a view's ID buffer `ids` (of `scene`).
+pub fn truth_of(scene: &Scene, ids: &IdBuffer) -> ViewTruth {
     ViewTruth {
         seen: ids.object_pixels(scene.objects().len()),
         hit_pixels: ids.hit_pixels(),

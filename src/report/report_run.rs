@@ -3,13 +3,13 @@
 
 use std::time::Instant;
 
-use super::report_metrics::{MethodSummary, ViewMetrics, ViewTruth, frustum_set, truth};
+use super::report_metrics::{MethodSummary, ViewMetrics, ViewTruth, frustum_set, truth_of};
 use crate::bitset::ObjectSet;
 use crate::geom::Aabb;
 use crate::lazy_grid::{GridParams, LazyGrid};
 use crate::oracle::Oracle;
 use crate::query::{Pvs, View};
-use crate::render::Camera;
+use crate::render::{Camera, IdBuffer};
 use crate::scene::Scene;
 use crate::shrink::ShrinkOracle;
 use crate::slices::{HiddenSlices, SlicedScene};
@@ -111,6 +111,10 @@ pub struct ReportParams {
     /// at slice granularity reported beside those at object granularity
     /// (0: none; at most 255).
     pub slices: usize,
+    /// The first this many views keep their ID buffers
+    /// ([`Experiment::pictures`]), for the report's pictures (0: none; at
+    /// most [`ReportParams::MAX_PICTURES`]).
+    pub pictures: usize,
 }
 
 impl Default for ReportParams {
@@ -120,11 +124,15 @@ impl Default for ReportParams {
             grid_cell: 32,
             oracle_cell: 0.01,
             slices: 0,
+            pictures: 8,
         }
     }
 }
 
 impl ReportParams {
+    /// The most views pictured.
+    pub const MAX_PICTURES: usize = 1000;
+
     /// Checks the settings; the error names the bad one.
     pub fn validate(&self) -> Result<(), ReportError> {
         let bad = |name, expected, value: &dyn std::fmt::Display| ReportError::Parameter {
@@ -141,6 +149,9 @@ impl ReportParams {
                 "between 1 and the resolution",
                 &self.grid_cell,
             ));
+        }
+        if self.pictures > Self::MAX_PICTURES {
+            return Err(bad("pictures", "between 0 (none) and 1000", &self.pictures));
         }
         if self.slices > crate::slices::MAX_SLICES {
             return Err(bad("slices", "between 0 (none) and 255", &self.slices));
@@ -285,6 +296,8 @@ pub struct GridCost {
 pub struct Experiment {
     /// Per view, the ground truth.
     pub truths: Vec<ViewTruth>,
+    /// The ID buffers of the first [`ReportParams::pictures`] views.
+    pub pictures: Vec<IdBuffer>,
     /// Seconds spent rendering the ground truth, all views.
     pub truth_seconds: f64,
     /// Per method, in [`Method::ALL`] order (the oracle only when one was
@@ -332,7 +345,7 @@ pub struct Oracles<'a, 'b> {
 }
 
 /// Runs the experiment on `views` of `scene` (traced by `tracer`): for
-/// each view, the ground truth ([`truth`]), then every method: frustum
+/// each view, the ground truth ([`truth_of`] of its ID buffer), then every method: frustum
 /// culling, the trees (built for `scene`), the lazy grid (lazy, then busy for its costs), and the
 /// `oracles` given (and their intersection when both are). `progress` gets the
 /// number of views done.
@@ -393,6 +406,7 @@ pub fn run(
     };
     let mut out = Experiment {
         truths: Vec::with_capacity(views.len()),
+        pictures: Vec::new(),
         truth_seconds: 0.0,
         methods: Vec::new(),
         grid_costs: Vec::with_capacity(views.len()),
@@ -402,8 +416,12 @@ pub fn run(
     let (mut set, mut frustum) = (ObjectSet::new(n), ObjectSet::new(n));
     for (i, (view, camera)) in views.iter().zip(&cameras).enumerate() {
         let start = Instant::now();
-        let t = truth(scene, tracer, camera);
+        let ids = IdBuffer::render(tracer, camera);
+        let t = truth_of(scene, &ids);
         out.truth_seconds += start.elapsed().as_secs_f64();
+        if i < params.pictures {
+            out.pictures.push(ids);
+        }
 
         let start = Instant::now();
         frustum_set(scene, view, &mut frustum);

@@ -115,10 +115,153 @@ fn report_writes_consistent_figures() {
     let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
     assert_eq!(html.matches("<svg").count(), 5, "five plots");
     assert!(!html.contains("<script"), "no JavaScript");
+    check_pictures(dir.path(), &j, &html, 6);
     let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(
         md.contains("| frustum |") && md.contains("| oracle |"),
         "{md}"
+    );
+}
+
+/// Reads a PNG: its size and RGB bytes.
+fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgb, "{}", path.display());
+    buf.truncate(info.buffer_size());
+    (info.width, info.height, buf)
+}
+
+/// The report's `count` pictures: PNG files of the views' size whose red
+/// pixels are the tree's missing pixels of the view, thumbnails linked to
+/// them on the page.
+fn check_pictures(dir: &Path, j: &serde_json::Value, html: &str, count: usize) {
+    let pictures = j["pictures"].as_array().unwrap();
+    assert_eq!(pictures.len(), count);
+    let tree = j["methods"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["name"] == "vis5d")
+        .unwrap();
+    let resolution = j["resolution"].as_u64().unwrap() as u32;
+    for (v, p) in pictures.iter().enumerate() {
+        assert_eq!(p["view"], v);
+        let (w, h, rgb) = read_png(&dir.join(p["file"].as_str().unwrap()));
+        assert_eq!((w, h), (resolution, resolution));
+        let red = rgb.chunks_exact(3).filter(|c| *c == [255, 0, 0]).count() as u64;
+        let missing = tree["per_view"][v]["missing_pixels"].as_u64().unwrap();
+        assert_eq!(
+            red, missing,
+            "view {v}: red pixels against the tree's missing ones"
+        );
+        assert_eq!(p["dropped_pixels"], missing);
+        let (sw, sh, _) = read_png(&dir.join(p["small"].as_str().unwrap()));
+        assert_eq!(
+            [sw, sh],
+            [
+                p["small_size"][0].as_u64().unwrap() as u32,
+                p["small_size"][1].as_u64().unwrap() as u32
+            ]
+        );
+        assert!(sw <= 200 && sh <= 200);
+        let link = format!(
+            "<a href=\"{}\"><img src=\"{}\"",
+            p["file"].as_str().unwrap(),
+            p["small"].as_str().unwrap()
+        );
+        assert!(html.contains(&link), "{link}");
+    }
+    assert_eq!(html.matches("<img").count(), count);
+}
+
+/// Pictures of a tree that drops objects: red where it does, and none
+/// with `--pictures 0`; too many refused.
+#[test]
+fn the_pictures_paint_what_a_poor_tree_drops() {
+    let dir = tempfile::tempdir().unwrap();
+    let poor = dir.path().join("poor.v5d");
+    // Few rays and a quick verdict: a tree that drops objects.
+    let out = vis5d(&[
+        "build",
+        "scenes/apartment.obj",
+        "-o",
+        poor.to_str().unwrap(),
+        "--reject",
+        "0.95",
+        "--max-rays",
+        "8",
+        "--s-thresh",
+        "0.4",
+        "--retest-rays",
+        "0",
+        "--edge-rays",
+        "0",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let report = dir.path().join("report");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "report",
+            "scenes/apartment.obj",
+            "--pvs",
+            poor.to_str().unwrap(),
+            "-o",
+            report.to_str().unwrap(),
+            "--random",
+            "8",
+            "--resolution",
+            "96",
+            "--no-oracle",
+            "--no-shrink",
+        ];
+        args.extend_from_slice(extra);
+        vis5d(&args)
+    };
+    let out = run(&["--pictures", "5"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let j: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(report.join("report.json")).unwrap()).unwrap();
+    let html = std::fs::read_to_string(report.join("index.html")).unwrap();
+    check_pictures(&report, &j, &html, 5);
+    let red: u64 = j["pictures"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["dropped_pixels"].as_u64().unwrap())
+        .sum();
+    eprintln!("{red} red pixels in 5 pictures");
+    // Without pictures: none on the page, no folder made.
+    let none = dir.path().join("none");
+    let out = vis5d(&[
+        "report",
+        "scenes/machine.obj",
+        "-o",
+        none.to_str().unwrap(),
+        "--random",
+        "2",
+        "--resolution",
+        "32",
+        "--no-oracle",
+        "--no-shrink",
+        "--pictures",
+        "0",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(!none.join("images").exists());
+    assert!(
+        !std::fs::read_to_string(none.join("index.html"))
+            .unwrap()
+            .contains("<img")
+    );
+    let out = run(&["--pictures", "1001"]);
+    assert!(!out.status.success());
+    assert!(
+        text(&out.stderr).contains("--pictures"),
+        "{}",
+        text(&out.stderr)
     );
 }
 
