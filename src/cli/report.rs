@@ -120,11 +120,13 @@ impl ReportArgs {
             ReportError::Parameter { name, .. } => anyhow!("{}: {e}", flag(name)),
             _ => e.into(),
         })?;
-        // A view's ground truth (rays and hits), the lazy grid's buffer.
+        // A view's ground truth (rays and hits), the lazy grid's buffer,
+        // and the ID buffers kept for the pictures (8 bytes a pixel, and
+        // 3 for the picture being painted).
         memory::check(
-            u64::from(self.resolution).pow(2) * 64,
-            "--resolution",
-            "render smaller views",
+            u64::from(self.resolution).pow(2) * (64 + 11 * self.pictures as u64),
+            "--resolution and --pictures",
+            "render smaller views, or fewer pictures",
         )?;
         Ok(params)
     }
