@@ -302,6 +302,19 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     if let Some(shrink) = &shrink {
         GpuWarning::default().finish(shrink.rasteriser());
     }
+    // The top-down map of the tree, with the pictures: the eyes joined
+    // when they are a camera path.
+    let map = (params.pictures > 0).then(|| {
+        let eyes: Vec<_> = views.iter().map(|v| v.position).collect();
+        report::map(
+            &scene,
+            &tracer,
+            &file.tree,
+            &eyes,
+            args.views.is_some(),
+            params.resolution.max(512),
+        )
+    });
     let summaries = report_page::write(
         &args.output,
         &Page {
@@ -312,6 +325,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
             experiment: &experiment,
             file: &file,
             tree,
+            map: map.as_ref(),
         },
     )?;
     let mut out = io::stdout().lock();

@@ -90,6 +90,23 @@ struct PictureJson {
     drawn_hidden: usize,
 }
 
+/// The top-down map: its files and what it shows.
+#[derive(Serialize)]
+struct MapJson {
+    file: String,
+    small: String,
+    small_size: [u32; 2],
+    /// The height of the cut through the tree (world up axis, scene
+    /// units, in the tree's frame).
+    height: f32,
+    /// The distinct boxes of positions outlined.
+    cells: usize,
+    /// The largest set among them (the deepest blue).
+    largest_set: usize,
+    /// Whether the eyes are joined as a camera path.
+    path: bool,
+}
+
 #[derive(Serialize)]
 struct ReportJson {
     scene: String,
@@ -105,6 +122,7 @@ struct ReportJson {
     grid_cell_pixels: u32,
     grid_costs: Vec<GridCost>,
     pictures: Vec<PictureJson>,
+    map: Option<MapJson>,
 }
 
 /// Where the report's tree came from, for the page.
@@ -133,6 +151,8 @@ pub struct Page<'a> {
     pub file: &'a V5dFile,
     /// Where the tree came from.
     pub tree: TreeSource,
+    /// The top-down map of the tree's cells, with the pictures.
+    pub map: Option<&'a vis5d::report::Map>,
 }
 
 /// Writes `report.json`, `report.md` and `index.html` into `dir` (made if
@@ -147,6 +167,7 @@ pub fn write(dir: &Path, page: &Page) -> Result<Vec<(&'static str, MethodSummary
         experiment: e,
         file,
         tree,
+        map,
     } = page;
     let summary = vis5d::builder::summarize(&file.tree, scene);
     let leaf_set_sizes: Vec<usize> = file
@@ -220,9 +241,28 @@ pub fn write(dir: &Path, page: &Page) -> Result<Vec<(&'static str, MethodSummary
         grid_cell_pixels: params.grid_cell,
         grid_costs: e.grid_costs.clone(),
         pictures: Vec::new(),
+        map: None,
     };
     let mut report = report;
-    let images = pictures(e, &mut report)?;
+    let mut images = pictures(e, &mut report)?;
+    if let Some(m) = map {
+        let small = m.picture.shrunk(2 * THUMBNAIL);
+        let (file, small_file) = (
+            format!("{IMAGES}/map.png"),
+            format!("{IMAGES}/map-small.png"),
+        );
+        images.push((file.clone(), png_bytes(&m.picture)?));
+        images.push((small_file.clone(), png_bytes(&small)?));
+        report.map = Some(MapJson {
+            file,
+            small: small_file,
+            small_size: [small.width, small.height],
+            height: m.height,
+            cells: m.cells,
+            largest_set: m.largest_set,
+            path: m.joined,
+        });
+    }
     write_files(dir, &report, e, &images)?;
     Ok(report
         .methods
@@ -235,6 +275,20 @@ pub fn write(dir: &Path, page: &Page) -> Result<Vec<(&'static str, MethodSummary
 const PICTURES_LEGEND: &str = "The first views as the ground truth sees them (one ray per pixel), \
      each object in a flat shade of its own, nothing in dark grey, and in red the pixels of the \
      objects the vis5d tree does not draw: what would pop. Click a picture for its full size.";
+
+/// The map's caption.
+fn map_caption(m: &MapJson) -> String {
+    format!(
+        "The view box seen from above, cut at height {:.2} (the eyes' mean): the {} boxes of \
+         positions of the tree's leaves there outlined, each tinted blue the more objects its set \
+         holds (the deepest blue {} objects; where leaves of other directions overlap, the \
+         largest), the scene beneath in darker shades, and the views' eyes in white{}.",
+        m.height,
+        m.cells,
+        m.largest_set,
+        if m.path { ", joined in order" } else { "" }
+    )
+}
 
 /// A picture's title: its view.
 fn picture_title(p: &PictureJson) -> String {
@@ -659,6 +713,14 @@ fn write_files(
     for m in &r.methods {
         writeln!(md, "- **{}**: {}", m.name, m.description)?;
     }
+    if let Some(m) = &r.map {
+        writeln!(
+            md,
+            "\n## Map\n\n[The tree from above]({}): {}",
+            m.file,
+            map_caption(m)
+        )?;
+    }
     if !r.pictures.is_empty() {
         writeln!(md, "\n## Pictures\n\n{PICTURES_LEGEND}\n")?;
         for p in &r.pictures {
@@ -798,6 +860,18 @@ fn write_files(
         )?;
     }
     writeln!(html, "</ul>")?;
+    if let Some(m) = &r.map {
+        writeln!(
+            html,
+            "<h2>The tree from above</h2><figure id=\"map\"><a href=\"{}\"><img src=\"{}\" \
+             width=\"{}\" height=\"{}\" alt=\"the tree's cells from above\"></a><figcaption>{}</figcaption></figure>",
+            m.file,
+            m.small,
+            m.small_size[0],
+            m.small_size[1],
+            html_escape(&map_caption(m))
+        )?;
+    }
     if !r.pictures.is_empty() {
         writeln!(
             html,

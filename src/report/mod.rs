@@ -22,7 +22,8 @@
 //!   the views.
 //!
 //! - **Pictures** ([`picture`]): the ID buffers of the first views in
-//!   flat shades by object, the objects a method dropped in red.
+//!   flat shades by object, the objects a method dropped in red; and a
+//!   top-down [`map`] of the tree's cells with the eyes on it.
 //!
 //! The command (`src/cli/report.rs`) loads the scene and the tree, runs the
 //! experiment, and writes the page, the JSON, the Markdown and the
@@ -32,7 +33,9 @@ mod report_image;
 mod report_metrics;
 mod report_run;
 
-pub use report_image::{BACKGROUND, DROPPED, Picture, object_shade, picture};
+pub use report_image::{
+    BACKGROUND, DROPPED, EYE, Map, OUTLINE, Picture, map, object_shade, picture,
+};
 pub use report_metrics::{MethodSummary, ViewMetrics, ViewTruth, frustum_set, truth, truth_of};
 pub use report_run::{
     Experiment, GridCost, Method, MethodRun, Oracles, ReportError, ReportParams, Trees, run,

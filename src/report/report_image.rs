@@ -3,7 +3,12 @@
 //! not draw in red, so that what popping would look like is seen, not
 //! read. The pixels are RGB bytes; `vis5d report` writes them as PNG.
 
+use glam::Vec3;
+
 use crate::render::IdBuffer;
+use crate::scene::Scene;
+use crate::trace::{Ray, Tracer};
+use crate::tree::VisTree;
 
 /// What a pixel whose object was dropped is painted: pure red, which no
 /// object's shade comes near ([`object_shade`] keeps its hues away from
@@ -123,6 +128,193 @@ fn hsl(hue: f64, s: f64, l: f64) -> [u8; 3] {
     [r, g, b].map(|v| ((v + m) * 255.0).round().clamp(0.0, 255.0) as u8)
 }
 
+/// The map's outlines of the tree's cells (half blended over the pixel).
+pub const OUTLINE: [u8; 3] = [16, 16, 24];
+
+/// The map's eyes.
+pub const EYE: [u8; 3] = [255, 255, 255];
+
+/// A top-down map of a tree's view box ([`map`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Map {
+    /// The picture, north (+y) up.
+    pub picture: Picture,
+    /// The height of the cut through the tree, in the tree's frame.
+    pub height: f32,
+    /// The distinct boxes of positions drawn: the leaves that reach that
+    /// height, seen from above.
+    pub cells: usize,
+    /// The largest set among them.
+    pub largest_set: usize,
+    /// Whether the eyes are joined in order (a camera path).
+    pub joined: bool,
+}
+
+/// A map of `tree`'s view box seen from above (down the scene's up axis,
+/// local z), `side` pixels along its longer side: the scene beneath (the
+/// top-down ray cast's objects, shaded darker), the leaves that reach
+/// height `z` (the mean of `eyes`' heights, or the view box's middle)
+/// outlined, each tinted blue the more objects its set holds (where
+/// leaves of other directions overlap, the largest), and the `eyes` as
+/// white dots, joined in order when `joined` (a camera path).
+pub fn map(
+    scene: &Scene,
+    tracer: &Tracer,
+    tree: &VisTree,
+    eyes: &[Vec3],
+    joined: bool,
+    side: u32,
+) -> Map {
+    let space = tree.root_cell().space();
+    let (lo, size) = (space.min, space.max - space.min);
+    let side = side.max(2);
+    let (w, h) = if size.x >= size.y {
+        (
+            side,
+            ((side as f32 * size.y / size.x).round() as u32).max(1),
+        )
+    } else {
+        (
+            ((side as f32 * size.x / size.y).round() as u32).max(1),
+            side,
+        )
+    };
+    // Pixel (i, j), row 0 at the north (+y) edge, and back.
+    let to_xy = |i: f32, j: f32| {
+        Vec3::new(
+            lo.x + size.x * i / w as f32,
+            lo.y + size.y * (1.0 - j / h as f32),
+            0.0,
+        )
+    };
+    let to_pixel = |p: Vec3| {
+        (
+            ((p.x - lo.x) / size.x * w as f32).floor() as i64,
+            ((1.0 - (p.y - lo.y) / size.y) * h as f32).floor() as i64,
+        )
+    };
+    // The scene beneath, from above everything.
+    let top = space.max.z.max(scene.bounds().max.z) + 1e-3 * space.diagonal().max(1.0);
+    let rays: Vec<Ray> = (0..h)
+        .flat_map(|j| (0..w).map(move |i| (i, j)))
+        .map(|(i, j)| {
+            let p = to_xy(i as f32 + 0.5, j as f32 + 0.5);
+            Ray::new(Vec3::new(p.x, p.y, top), Vec3::NEG_Z)
+        })
+        .collect();
+    let mut rgb: Vec<u8> = tracer
+        .closest_hits(&rays)
+        .iter()
+        .flat_map(|hit| match hit {
+            None => BACKGROUND,
+            Some(hit) => object_shade(hit.object).map(|c| (u16::from(c) * 3 / 5) as u8),
+        })
+        .collect();
+    // The cut: the leaves reaching height z, by their boxes of positions.
+    let z = if eyes.is_empty() {
+        0.5 * (space.min.z + space.max.z)
+    } else {
+        (eyes.iter().map(|e| e.z).sum::<f32>() / eyes.len() as f32).clamp(space.min.z, space.max.z)
+    };
+    let mut boxes: Vec<([u32; 4], usize)> = Vec::new();
+    for leaf in tree.leaves() {
+        let c = &leaf.cell;
+        let reaches = c.lo[2] <= z && (z < c.hi[2] || c.hi[2] >= space.max.z);
+        if reaches {
+            let key = [c.lo[0], c.lo[1], c.hi[0], c.hi[1]].map(f32::to_bits);
+            boxes.push((key, tree.nodes()[leaf.node].set.count()));
+        }
+    }
+    boxes.sort_unstable();
+    // One entry a box, with its largest set.
+    boxes.dedup_by(|b, a| {
+        let same = a.0 == b.0;
+        if same {
+            a.1 = a.1.max(b.1);
+        }
+        same
+    });
+    let largest_set = boxes.iter().map(|b| b.1).max().unwrap_or(0);
+    let mut tint = vec![0usize; (w * h) as usize];
+    let pixel_range = |a: f32, b: f32, lo: f32, size: f32, n: u32| {
+        let f = |v: f32| ((v - lo) / size * n as f32).round().clamp(0.0, n as f32) as u32;
+        (f(a), f(b))
+    };
+    let mut outline = vec![false; (w * h) as usize];
+    for (key, set) in &boxes {
+        let [x0, y0, x1, y1] = key.map(f32::from_bits);
+        let (i0, i1) = pixel_range(x0, x1, lo.x, size.x, w);
+        // Rows count from the north edge.
+        let (r0, r1) = pixel_range(y0, y1, lo.y, size.y, h);
+        let (j0, j1) = (h - r1, h - r0);
+        for j in j0..j1 {
+            for i in i0..i1 {
+                let k = (j * w + i) as usize;
+                tint[k] = tint[k].max(*set);
+                if i == i0 || j == j0 || i + 1 == i1 || j + 1 == j1 {
+                    outline[k] = true;
+                }
+            }
+        }
+    }
+    for (k, px) in rgb.chunks_exact_mut(3).enumerate() {
+        if largest_set > 0 {
+            let a = 0.5 * tint[k] as f32 / largest_set as f32;
+            for (c, blue) in px.iter_mut().zip([30.0, 90.0, 220.0]) {
+                *c = (f32::from(*c) * (1.0 - a) + blue * a).round() as u8;
+            }
+        }
+        if outline[k] {
+            // Half way to the outline's colour: the scene still shows.
+            for (c, o) in px.iter_mut().zip(OUTLINE) {
+                *c = ((u16::from(*c) + u16::from(o)) / 2) as u8;
+            }
+        }
+    }
+    let mut picture = Picture {
+        width: w,
+        height: h,
+        rgb,
+    };
+    let pixels: Vec<(i64, i64)> = eyes.iter().map(|&e| to_pixel(e)).collect();
+    if joined {
+        for pair in pixels.windows(2) {
+            let (a, b) = (pair[0], pair[1]);
+            let steps = (b.0 - a.0).abs().max((b.1 - a.1).abs()).max(1);
+            for t in 0..=steps {
+                let f = t as f64 / steps as f64;
+                let p = (
+                    a.0 + ((b.0 - a.0) as f64 * f).round() as i64,
+                    a.1 + ((b.1 - a.1) as f64 * f).round() as i64,
+                );
+                if (0..i64::from(w)).contains(&p.0) && (0..i64::from(h)).contains(&p.1) {
+                    let k = 3 * (p.1 as usize * w as usize + p.0 as usize);
+                    picture.rgb[k..k + 3].copy_from_slice(&EYE);
+                }
+            }
+        }
+    }
+    let mut dot = |p: (i64, i64)| {
+        for (dj, di) in (-1..=1).flat_map(|dj| (-1..=1).map(move |di| (dj, di))) {
+            let (i, j) = (p.0 + di, p.1 + dj);
+            if (0..i64::from(w)).contains(&i) && (0..i64::from(h)).contains(&j) {
+                let k = 3 * (j as usize * w as usize + i as usize);
+                picture.rgb[k..k + 3].copy_from_slice(&EYE);
+            }
+        }
+    };
+    for &p in &pixels {
+        dot(p);
+    }
+    Map {
+        picture,
+        height: z,
+        cells: boxes.len(),
+        largest_set,
+        joined,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -169,6 +361,62 @@ mod tests {
             let red = dropped.get(i, j) == DROPPED;
             assert_eq!(red, o == Some(a.0) || o == Some(b.0), "pixel {i} {j}");
         }
+    }
+
+    /// The map: the view box's shape, every eye white where it is, the
+    /// path drawn when joined, the cut's boxes and largest set those of
+    /// the tree's leaves at the eyes' height.
+    #[test]
+    fn the_map_shows_the_cells_and_the_eyes() {
+        use crate::builder::{BuildParams, build};
+        use crate::scene::procedural::{SceneKind, generate};
+        let scene = generate(SceneKind::City, 2, 1);
+        let tracer = Tracer::new(&scene);
+        let params = BuildParams {
+            max_depth: 6,
+            ..BuildParams::default()
+        };
+        let (tree, _) = build(&scene, &tracer, &params, &|_| {}).unwrap();
+        let space = tree.root_cell().space();
+        let at = |fx: f32, fy: f32| {
+            let d = space.max - space.min;
+            Vec3::new(
+                space.min.x + fx * d.x,
+                space.min.y + fy * d.y,
+                space.min.z + 0.3 * d.z,
+            )
+        };
+        let eyes = [at(0.25, 0.25), at(0.75, 0.5), at(0.5, 0.9)];
+        let m = map(&scene, &tracer, &tree, &eyes, false, 96);
+        let size = space.max - space.min;
+        assert_eq!(m.picture.width.max(m.picture.height), 96);
+        let ratio = m.picture.width as f32 / m.picture.height as f32;
+        assert!((ratio - size.x / size.y).abs() < 0.05 * ratio, "{ratio}");
+        assert!((m.height - eyes[0].z).abs() < 1e-3 * size.z);
+        // Each eye's pixel (north up) is white.
+        for e in eyes {
+            let i = ((e.x - space.min.x) / size.x * m.picture.width as f32) as u32;
+            let j = ((1.0 - (e.y - space.min.y) / size.y) * m.picture.height as f32) as u32;
+            assert_eq!(m.picture.get(i, j), EYE, "eye {e}");
+        }
+        // The cut: the distinct boxes of the leaves at that height.
+        let mut boxes = std::collections::BTreeMap::new();
+        for leaf in tree.leaves() {
+            let c = leaf.cell;
+            if c.lo[2] <= m.height && (m.height < c.hi[2] || c.hi[2] >= space.max.z) {
+                let key = [c.lo[0], c.lo[1], c.hi[0], c.hi[1]].map(f32::to_bits);
+                let set = tree.nodes()[leaf.node].set.count();
+                let e = boxes.entry(key).or_insert(0);
+                *e = set.max(*e);
+            }
+        }
+        assert!(boxes.len() >= 2, "a cut of one box tests little");
+        assert_eq!(m.cells, boxes.len());
+        assert_eq!(m.largest_set, *boxes.values().max().unwrap());
+        // Joined, the path adds white pixels between the eyes.
+        let path = map(&scene, &tracer, &tree, &eyes, true, 96);
+        assert!(path.joined && !m.joined);
+        assert!(path.picture.count(EYE) > m.picture.count(EYE) + 20);
     }
 
     #[test]

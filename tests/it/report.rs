@@ -174,7 +174,18 @@ fn check_pictures(dir: &Path, j: &serde_json::Value, html: &str, count: usize) {
         );
         assert!(html.contains(&link), "{link}");
     }
-    assert_eq!(html.matches("<img").count(), count);
+    // The map, with the pictures.
+    let map = &j["map"];
+    let (w, h, _) = read_png(&dir.join(map["file"].as_str().unwrap()));
+    assert_eq!(w.max(h), resolution.max(512));
+    assert!(map["cells"].as_u64().unwrap() >= 1);
+    let link = format!(
+        "<a href=\"{}\"><img src=\"{}\"",
+        map["file"].as_str().unwrap(),
+        map["small"].as_str().unwrap()
+    );
+    assert!(html.contains(&link), "{link}");
+    assert_eq!(html.matches("<img").count(), count + 1);
 }
 
 /// Pictures of a tree that drops objects: red where it does, and none
@@ -251,6 +262,9 @@ fn the_pictures_paint_what_a_poor_tree_drops() {
     ]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     assert!(!none.join("images").exists());
+    let j: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(none.join("report.json")).unwrap()).unwrap();
+    assert!(j["map"].is_null() && j["pictures"].as_array().unwrap().is_empty());
     assert!(
         !std::fs::read_to_string(none.join("index.html"))
             .unwrap()
