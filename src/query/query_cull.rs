@@ -1,7 +1,8 @@
 //! The frustum cull of a view's answer, in the form a query runs it:
-//! eight objects' boxes at a time against each of a [`Frustum`]'s planes,
-//! the eye's and the four sides, with straight-line multiplies and adds
-//! the compiler turns into vector code ([`Boxes8`], [`Cull::keeps8`]).
+//! eight objects' boxes at a time ([`Boxes8`]) against each of a
+//! [`Frustum`]'s planes, the eye's and the four sides, in AVX registers
+//! where the CPU has them ([`Cull::keeps8_avx`]), a box at a time
+//! elsewhere ([`Cull::keeps8`]), the same answers either way.
 //!
 //! A box with corners `lo`, `hi` reaches furthest along a normal `n` at
 //! the corner that takes `hi` where `n` is positive and `lo` where it is

@@ -1,7 +1,8 @@
 //! The object table of a loaded file, as queries and engines read it: per
 //! object a 16-byte row and its box (24 bytes, apart, for the frustum
-//! cull to read alone, eight boxes to a [`Boxes8`]), and one string holding the names and the ids (an
-//! id is stored only where it is not the name, as it mostly is).
+//! cull to read alone, eight boxes to a [`Boxes8`]), and one string
+//! holding the names and the ids (an id is stored only where it is not
+//! the name, as it mostly is).
 
 use glam::Vec3;
 

@@ -228,8 +228,9 @@ impl Deposit for Bmi2 {
     }
 }
 
-/// The 64 bits of `code` from bit `pos`, at most its end without the
-/// two words to spare it ends with: a deposit takes the ones it needs.
+/// The 64 bits of `code` from bit `pos` (at most where the codes end,
+/// before the two spare words of zeros): a deposit takes the ones it
+/// needs.
 #[inline(always)]
 fn read(code: &[u64], pos: usize) -> u64 {
     let i = pos >> 6;
