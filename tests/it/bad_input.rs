@@ -395,7 +395,7 @@ fn flags_that_would_exhaust_the_machine_are_refused() {
                 "--max-memory",
                 "1G",
             ],
-            "--resolution would need",
+            "--resolution and --pictures would need",
         ),
         (
             vec!["info", m, "--max-memory", "64K"],
