@@ -177,7 +177,7 @@ pub fn write(dir: &Path, page: &Page) -> Result<Vec<(&'static str, MethodSummary
         .map(|l| file.tree.nodes()[l.node].set.count())
         .collect();
     let frustum = e.frustum();
-    let report = ReportJson {
+    let mut report = ReportJson {
         scene: scene_name.clone(),
         objects: scene.objects().len(),
         triangles: scene.triangles().len(),
@@ -243,7 +243,6 @@ pub fn write(dir: &Path, page: &Page) -> Result<Vec<(&'static str, MethodSummary
         pictures: Vec::new(),
         map: None,
     };
-    let mut report = report;
     let mut images = pictures(e, &mut report)?;
     if let Some(m) = map {
         let small = m.picture.shrunk(2 * THUMBNAIL);
