@@ -20,6 +20,21 @@ fn build(model: &Path, extra: &[&str], out: &Path) {
     assert!(o.status.success(), "{args:?}: {}", text(&o.stderr));
 }
 
+/// The `n` parts of a build of `model` with `flags`, built into `dir`
+/// (named after `stem`).
+fn build_shards(model: &Path, flags: &[&str], n: u32, dir: &Path, stem: &str) -> Vec<PathBuf> {
+    (0..n)
+        .map(|i| {
+            let part = dir.join(format!("{stem}.{i}of{n}.v5dpart"));
+            let shard = format!("{i}/{n}");
+            let mut args = flags.to_vec();
+            args.extend(["--shard", &shard]);
+            build(model, &args, &part);
+            part
+        })
+        .collect()
+}
+
 /// `vis5d merge` of `parts` to `out`: its output.
 fn merge(parts: &[PathBuf], out: &Path) -> std::process::Output {
     let mut args = vec!["merge".to_owned()];
@@ -38,14 +53,7 @@ fn shards_merge_into_the_file_a_single_build_writes() {
         build(&model, &["--top-levels", levels], &whole);
         let want = std::fs::read(&whole).unwrap();
         for n in [1u32, 2, 3, 7] {
-            let parts: Vec<PathBuf> = (0..n)
-                .map(|i| {
-                    let part = dir.path().join(format!("{name}.{i}of{n}.v5dpart"));
-                    let shard = format!("{i}/{n}");
-                    build(&model, &["--top-levels", levels, "--shard", &shard], &part);
-                    part
-                })
-                .collect();
+            let parts = build_shards(&model, &["--top-levels", levels], n, dir.path(), name);
             // In any order.
             let mut shuffled = parts.clone();
             shuffled.reverse();
@@ -76,18 +84,7 @@ fn a_scene_of_many_objects_shards_without_being_told() {
         std::fs::read(&plain).unwrap() == want,
         "the top the scene fixes is not the one --top-levels 2 fixes"
     );
-    let parts: Vec<PathBuf> = (0..3)
-        .map(|i| {
-            let part = dir.path().join(format!("city.{i}of3.v5dpart"));
-            let shard = format!("{i}/3");
-            build(
-                &model,
-                &["--subtree-objects", "60", "--shard", &shard],
-                &part,
-            );
-            part
-        })
-        .collect();
+    let parts = build_shards(&model, &["--subtree-objects", "60"], 3, dir.path(), "city");
     let merged = dir.path().join("merged.v5d");
     let o = merge(&parts, &merged);
     assert!(o.status.success(), "{}", text(&o.stderr));
