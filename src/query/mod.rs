@@ -863,6 +863,15 @@ impl Pvs {
         Ok(self.leaf_into(p, out.words_mut()))
     }
 
+    /// The leaf holding the ray point `p` = (x, y, z, theta, phi), local
+    /// coordinates (a point on a split value goes above, as queries do):
+    /// its rank in the tree's preorder (a stable id for this file) and its
+    /// cell. `None` outside the view box or for a NaN, where no leaf
+    /// answers ([`Answer::Everything`]).
+    pub fn leaf_at(&self, p: [f32; DIMS]) -> Option<(u32, Cell)> {
+        self.holds(p).then(|| self.tree.leaf_cell(p, None))
+    }
+
     /// [`Pvs::leaf_set`] into words of the file's size.
     fn leaf_into(&self, p: [f32; DIMS], out: &mut [u64]) -> Answer {
         if self.holds(p) {

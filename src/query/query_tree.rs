@@ -721,13 +721,18 @@ impl CodedTree {
     /// The preorder rank of the leaf holding the ray point `p` (inside the
     /// root cell: a point on a split value goes above, as queries do), and
     /// its set into `out` (of the tree's words) when given.
-    pub(crate) fn leaf(&self, p: [f32; DIMS], mut out: Option<&mut [u64]>) -> u32 {
+    pub(crate) fn leaf(&self, p: [f32; DIMS], out: Option<&mut [u64]>) -> u32 {
+        self.leaf_cell(p, out).0
+    }
+
+    /// As [`CodedTree::leaf`], with the leaf's cell.
+    pub(crate) fn leaf_cell(&self, p: [f32; DIMS], mut out: Option<&mut [u64]>) -> (u32, Cell) {
         let words = self.words;
         if let Some(out) = out.as_deref_mut() {
             out.copy_from_slice(&self.root_set);
         }
         if self.inner.is_empty() {
-            return 0;
+            return (0, self.root);
         }
         let mut scratch = Vec::new();
         if out.is_some() {
@@ -778,7 +783,7 @@ impl CodedTree {
         if out.is_some() {
             let _ = SCRATCH.try_with(|s| s.set(scratch));
         }
-        rank
+        (rank, cell)
     }
 }
 

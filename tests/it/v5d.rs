@@ -68,6 +68,9 @@ fn the_leaf_found_by_the_query_holds_the_builders_set() {
     let mut out = pvs.new_set();
     let root = tree.root_cell();
     let mut rng = Pcg64::seed_from_u64(11);
+    let cells: std::collections::HashMap<usize, Cell> =
+        tree.leaves().iter().map(|l| (l.node, l.cell)).collect();
+    let mut ranks = std::collections::HashMap::new();
     for _ in 0..20_000 {
         let p: [f32; DIMS] = root.sample([
             rng.random(),
@@ -79,7 +82,19 @@ fn the_leaf_found_by_the_query_holds_the_builders_set() {
         let leaf = tree.locate(p);
         assert_eq!(pvs.leaf_set(p, &mut out), Ok(Answer::Tree));
         assert_eq!(out, tree.nodes()[leaf].set);
+        // `leaf_at` names the same leaf: its cell, and one rank per leaf.
+        let (rank, cell) = pvs.leaf_at(p).unwrap();
+        assert_eq!(cell, cells[&leaf], "{p:?}");
+        assert_eq!(*ranks.entry(rank).or_insert(leaf), leaf, "{p:?}");
     }
+    assert!(ranks.len() > 100, "{}", ranks.len());
+    // Outside the view box, or a NaN: no leaf.
+    let mut p = root.sample([0.5; DIMS]);
+    assert!(pvs.leaf_at(p).is_some());
+    p[0] = root.hi[0] + 1.0;
+    assert_eq!(pvs.leaf_at(p), None);
+    p[0] = f32::NAN;
+    assert_eq!(pvs.leaf_at(p), None);
 }
 
 /// Whether the closed range meets the half-open cell (the query's rule).
