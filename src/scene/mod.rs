@@ -33,6 +33,7 @@ mod load_gltf;
 mod load_obj;
 pub mod procedural;
 mod scene_builder;
+mod write_glb;
 mod write_obj;
 
 use std::fmt;
@@ -47,6 +48,7 @@ use crate::geom::{Aabb, Frame, Up};
 use crate::invariant::InvariantError;
 
 pub use scene_builder::SceneBuilder;
+pub use write_glb::{glb_bytes, write_glb};
 pub use write_obj::{write_obj, write_obj_file};
 
 /// A triangle: three corners, in the scene's local coordinates
