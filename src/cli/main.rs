@@ -30,6 +30,7 @@ mod report_page;
 mod scene;
 mod stat;
 mod trace;
+mod view;
 
 use std::io;
 use std::process::ExitCode;
@@ -184,6 +185,19 @@ enum Command {
     /// every subtree once) and writes the file a single `vis5d build MODEL
     /// --top-levels K` with the same parameters writes, byte for byte.
     Merge(merge::MergeArgs),
+    /// Fly through a scene in the web browser, drawing what a tree says.
+    ///
+    /// Starts a local web server and prints its address. The page draws
+    /// the scene (WebGL, three.js shipped inside vis5d: no network
+    /// needed); fly with the mouse (drag to look) and W A S D, Q E. Each
+    /// frame it asks the server for the set of the camera's view and
+    /// hides the rest; an overlay shows objects and triangles drawn, the
+    /// leaf's cell as a wire box, and (key C) a check that renders every
+    /// object's id and paints red any visible object the set lacks. With
+    /// several --pvs files, key T (or the list) switches between them. The
+    /// JSON API the page uses (/api/info, /api/scene.glb, /api/query,
+    /// /api/cell) is documented in the README.
+    View(view::ViewArgs),
 }
 
 fn main() -> ExitCode {
@@ -218,6 +232,7 @@ fn main() -> ExitCode {
         Command::Scene(args) => scene::run(&args),
         Command::Trace(args) => trace::run(&args),
         Command::Merge(args) => merge::run(&args),
+        Command::View(args) => view::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -22,6 +22,7 @@ mod sprt;
 mod trace;
 mod up_axis;
 mod v5d;
+mod view;
 
 use std::path::{Path, PathBuf};
 
@@ -95,4 +96,57 @@ pub fn machine_tree(dir: &Path, depth: u32) -> PathBuf {
     ]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     v5d
+}
+
+/// Builds a tree of `model` into `out` that drops visible objects: few
+/// rays and quick verdicts (for tests that must see popping).
+pub fn build_poor_tree(model: &str, out: &Path) {
+    let out = vis5d(&[
+        "build",
+        model,
+        "-o",
+        out.to_str().unwrap(),
+        "--reject",
+        "0.95",
+        "--max-rays",
+        "8",
+        "--s-thresh",
+        "0.4",
+        "--retest-rays",
+        "0",
+        "--edge-rays",
+        "0",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+}
+
+/// `vis5d ARGS` fails with exit status 2 and `message` on stderr.
+pub fn assert_refused(args: &[&str], message: &str) {
+    let out = vis5d(args);
+    assert_eq!(out.status.code(), Some(2), "{args:?}");
+    assert!(
+        text(&out.stderr).contains(message),
+        "{args:?}: {}",
+        text(&out.stderr)
+    );
+}
+
+/// Chromium's command, or `None` when it is not installed (the caller
+/// skips its test), which fails when `VIS5D_REQUIRE_CHROMIUM` is set (CI
+/// sets it).
+pub fn chromium() -> Option<&'static str> {
+    let found = ["chromium", "chromium-browser"].into_iter().find(|c| {
+        std::process::Command::new(c)
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success())
+    });
+    if found.is_none() {
+        assert!(
+            std::env::var_os("VIS5D_REQUIRE_CHROMIUM").is_none(),
+            "VIS5D_REQUIRE_CHROMIUM is set but chromium is not installed"
+        );
+        eprintln!("skipping: no chromium");
+    }
+    found
 }

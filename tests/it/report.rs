@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use crate::{text, vis5d};
+use crate::{build_poor_tree, chromium, text, vis5d};
 
 /// Runs a small report on the machine scene into `dir`.
 fn small_report(dir: &Path, extra: &[&str]) -> serde_json::Value {
@@ -194,24 +194,7 @@ fn check_pictures(dir: &Path, j: &serde_json::Value, html: &str, count: usize) {
 fn the_pictures_paint_what_a_poor_tree_drops() {
     let dir = tempfile::tempdir().unwrap();
     let poor = dir.path().join("poor.v5d");
-    // Few rays and a quick verdict: a tree that drops objects.
-    let out = vis5d(&[
-        "build",
-        "scenes/apartment.obj",
-        "-o",
-        poor.to_str().unwrap(),
-        "--reject",
-        "0.95",
-        "--max-rays",
-        "8",
-        "--s-thresh",
-        "0.4",
-        "--retest-rays",
-        "0",
-        "--edge-rays",
-        "0",
-    ]);
-    assert!(out.status.success(), "{}", text(&out.stderr));
+    build_poor_tree("scenes/apartment.obj", &poor);
     let report = dir.path().join("report");
     let run = |extra: &[&str]| {
         let mut args = vec![
@@ -370,20 +353,7 @@ fn report_takes_a_tree_and_a_camera_path_and_refuses_bad_input() {
 /// `VIS5D_REQUIRE_CHROMIUM` is set (CI sets it).
 #[test]
 fn the_page_loads_in_headless_chromium() {
-    let chromium = ["chromium", "chromium-browser"].into_iter().find(|c| {
-        Command::new(c)
-            .arg("--version")
-            .output()
-            .is_ok_and(|o| o.status.success())
-    });
-    let Some(chromium) = chromium else {
-        assert!(
-            std::env::var_os("VIS5D_REQUIRE_CHROMIUM").is_none(),
-            "VIS5D_REQUIRE_CHROMIUM is set but chromium is not installed"
-        );
-        eprintln!("skipping: no chromium");
-        return;
-    };
+    let Some(chromium) = chromium() else { return };
     let dir = tempfile::tempdir().unwrap();
     small_report(dir.path(), &["--no-oracle"]);
     let url = format!("file://{}", dir.path().join("index.html").display());
