@@ -11,7 +11,10 @@ use plotters::prelude::*;
 use serde::Serialize;
 use vis5d::codec::{Coding, V5dFile, code_size};
 use vis5d::query::View;
-use vis5d::report::{DROPPED, Experiment, GridCost, Method, MethodSummary, ReportParams, picture};
+use vis5d::report::{
+    DROPPED, Experiment, GridCost, LAYER_SHADES, Method, MethodSummary, ReportParams,
+    drawn_picture, picture,
+};
 use vis5d::scene::Scene;
 
 use crate::common::World;
@@ -88,6 +91,23 @@ struct PictureJson {
     drawn_objects: usize,
     /// Objects drawn but not seen (hidden, or outside the image).
     drawn_hidden: usize,
+    /// What each method draws in this view.
+    methods: Vec<DrawnJson>,
+}
+
+/// A picture of what one method draws in a view ([`drawn_picture`]).
+#[derive(Serialize)]
+struct DrawnJson {
+    method: &'static str,
+    file: String,
+    size: [u32; 2],
+    /// Objects the method draws.
+    objects: usize,
+    /// The mean number of the method's objects a pixel's ray passes, over
+    /// the pixels that see something (1: no overdraw).
+    mean_layers: f64,
+    /// Pixels whose object the method does not draw (red).
+    dropped_pixels: u64,
 }
 
 /// The top-down map: its files and what it shows.
@@ -529,6 +549,25 @@ fn pictures(e: &Experiment, r: &mut ReportJson) -> Result<Vec<(String, Vec<u8>)>
         );
         let metrics = &tree.per_view[view];
         let seen = e.truths[view].seen.len();
+        let mut methods = Vec::new();
+        if let Some(layers) = e.layers.get(view) {
+            for run in &e.methods {
+                let Some(set) = run.pictured.get(view) else {
+                    continue;
+                };
+                let (drawn, mean_layers) = drawn_picture(layers, set);
+                let file = format!("{IMAGES}/view-{view:03}-{}.png", slug(run.method.name()));
+                methods.push(DrawnJson {
+                    method: run.method.name(),
+                    file: file.clone(),
+                    size: [drawn.width, drawn.height],
+                    objects: set.count(),
+                    mean_layers,
+                    dropped_pixels: drawn.count(DROPPED),
+                });
+                files.push((file, png_bytes(&drawn)?));
+            }
+        }
         r.pictures.push(PictureJson {
             view,
             file: file.clone(),
@@ -539,11 +578,44 @@ fn pictures(e: &Experiment, r: &mut ReportJson) -> Result<Vec<(String, Vec<u8>)>
             seen_objects: seen,
             drawn_objects: metrics.objects,
             drawn_hidden: metrics.objects - (seen - dropped.len()),
+            methods,
         });
         files.push((file, png_bytes(&full)?));
         files.push((small_file, png_bytes(&small)?));
     }
     Ok(files)
+}
+
+/// A method's name as a file name's part: lower case, words joined by
+/// '-'.
+fn slug(name: &str) -> String {
+    name.split(|c: char| !c.is_ascii_alphanumeric())
+        .filter(|w| !w.is_empty())
+        .map(str::to_ascii_lowercase)
+        .collect::<Vec<_>>()
+        .join("-")
+}
+
+/// What the pictures of what each method draws show, for both pages.
+const DRAWN_LEGEND: &str = "What each method would draw in the same views, at most 200 pixels a \
+     side: each pixel tinted by how many of the method's objects its ray passes, from one (pale \
+     yellow: exact visibility draws one) to nine or more (deep purple): the overdraw the set \
+     costs; in red the pixels whose object the method does not draw (popping). Under each, the \
+     mean number of objects a pixel passes.";
+
+/// One picture of what a method draws, for the markdown page.
+fn drawn_caption(d: &DrawnJson) -> String {
+    format!(
+        "{}: {} objects, {:.2} a pixel{}",
+        d.method,
+        d.objects,
+        d.mean_layers,
+        if d.dropped_pixels > 0 {
+            format!(", {} pixels dropped", d.dropped_pixels)
+        } else {
+            String::new()
+        }
+    )
 }
 
 /// `p` as a PNG file (8-bit RGB).
@@ -731,6 +803,17 @@ fn write_files(
                 picture_caption(p)
             )?;
         }
+        if r.pictures.iter().any(|p| !p.methods.is_empty()) {
+            writeln!(md, "\n## What each method draws\n\n{DRAWN_LEGEND}\n")?;
+            for p in &r.pictures {
+                let row: Vec<String> = p
+                    .methods
+                    .iter()
+                    .map(|d| format!("[{}]({})", drawn_caption(d), d.file))
+                    .collect();
+                writeln!(md, "- {}: {}", picture_title(p), row.join("; "))?;
+            }
+        }
     }
 
     // The page.
@@ -816,7 +899,7 @@ fn write_files(
         "<style>body{{font-family:sans-serif;max-width:64rem;margin:2rem auto;padding:0 1rem;color:#222}}\
          table{{border-collapse:collapse;margin:1rem 0}}th,td{{border:1px solid #ccc;padding:.3rem .6rem;text-align:right}}\
          th:first-child,td:first-child{{text-align:left}}figure{{margin:1.5rem 0}}\
-         .pictures{{display:flex;flex-wrap:wrap;gap:1rem}}.pictures figure{{margin:0;width:200px}}.pictures img{{image-rendering:pixelated;border:1px solid #ccc}}figcaption{{color:#555;font-size:.9rem}}.legend{{color:#444;font-size:.9rem}}</style></head><body>"
+         .pictures{{display:flex;flex-wrap:wrap;gap:1rem}}.pictures figure{{margin:0;width:200px}}.pictures img{{image-rendering:pixelated;border:1px solid #ccc}}figcaption{{color:#555;font-size:.9rem}}.legend{{color:#444;font-size:.9rem}}.swatch{{display:inline-block;width:.9em;height:.9em;margin:0 .2em 0 .6em;vertical-align:middle;border:1px solid #999}}table.drawn td{{text-align:center;font-size:.85rem;vertical-align:top}}table.drawn img{{image-rendering:pixelated;border:1px solid #ccc}}.red{{color:#c00}}</style></head><body>"
     )?;
     writeln!(html, "<h1>vis5d report: {}</h1>", html_escape(&r.scene))?;
     writeln!(
@@ -892,6 +975,62 @@ fn write_files(
             )?;
         }
         writeln!(html, "</div>")?;
+        if let Some(first) = r.pictures.iter().find(|p| !p.methods.is_empty()) {
+            let swatch = |c: [u8; 3], label: &str| {
+                format!(
+                    "<span class=\"swatch\" style=\"background:rgb({},{},{})\"></span>{label} ",
+                    c[0], c[1], c[2]
+                )
+            };
+            let mut legend: String = LAYER_SHADES
+                .iter()
+                .enumerate()
+                .map(|(k, &c)| {
+                    let label = if k + 1 == LAYER_SHADES.len() {
+                        format!("{}+", k + 1)
+                    } else {
+                        (k + 1).to_string()
+                    };
+                    swatch(c, &label)
+                })
+                .collect();
+            legend += &swatch(DROPPED, "dropped");
+            writeln!(
+                html,
+                "<h2 id=\"drawn\">What each method draws</h2><p class=\"legend\">{}</p><p class=\"legend\">{legend}</p><table class=\"drawn\"><tr><th>view</th>",
+                html_escape(DRAWN_LEGEND)
+            )?;
+            for d in &first.methods {
+                writeln!(html, "<th>{}</th>", html_escape(d.method))?;
+            }
+            writeln!(html, "</tr>")?;
+            for p in &r.pictures {
+                writeln!(
+                    html,
+                    "<tr><td><a href=\"#view-{v}\">{v}</a></td>",
+                    v = p.view
+                )?;
+                for d in &p.methods {
+                    writeln!(
+                        html,
+                        "<td><a href=\"{file}\"><img src=\"{file}\" width=\"{w}\" height=\"{h}\" \
+                         alt=\"{alt}\"></a><br>{layers:.2}{dropped}</td>",
+                        file = d.file,
+                        w = d.size[0].min(120),
+                        h = (d.size[1] * d.size[0].min(120)).div_ceil(d.size[0].max(1)),
+                        alt = html_escape(&drawn_caption(d)),
+                        layers = d.mean_layers,
+                        dropped = if d.dropped_pixels > 0 {
+                            format!(" <span class=\"red\">{} px</span>", d.dropped_pixels)
+                        } else {
+                            String::new()
+                        }
+                    )?;
+                }
+                writeln!(html, "</tr>")?;
+            }
+            writeln!(html, "</table>")?;
+        }
     }
     let figure = |html: &mut String, id: &str, svg: &str, caption: &str| {
         writeln!(

@@ -34,7 +34,8 @@ mod report_metrics;
 mod report_run;
 
 pub use report_image::{
-    BACKGROUND, DROPPED, EYE, Map, OUTLINE, Picture, map, object_shade, picture,
+    BACKGROUND, DRAWN_SIDE, DROPPED, EYE, LAYER_SHADES, Layers, MAX_LAYERS, Map, OUTLINE, Picture,
+    drawn_picture, map, object_shade, picture,
 };
 pub use report_metrics::{MethodSummary, ViewMetrics, ViewTruth, frustum_set, truth, truth_of};
 pub use report_run::{

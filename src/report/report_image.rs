@@ -1,11 +1,15 @@
 //! The report's pictures (issue 18): a view's ID buffer drawn in flat
 //! shades, one per object, with the pixels of the objects a method did
 //! not draw in red, so that what popping would look like is seen, not
-//! read. The pixels are RGB bytes; `vis5d report` writes them as PNG.
+//! read; and per method, what it would draw at each pixel ([`Layers`],
+//! [`drawn_picture`]): how many of its objects each pixel's ray passes
+//! (overdraw) and where it pops. The pixels are RGB bytes; `vis5d report`
+//! writes them as PNG.
 
 use glam::Vec3;
 
-use crate::render::IdBuffer;
+use crate::bitset::ObjectSet;
+use crate::render::{Camera, IdBuffer};
 use crate::scene::Scene;
 use crate::trace::{Ray, Tracer};
 use crate::tree::VisTree;
@@ -126,6 +130,141 @@ fn hsl(hue: f64, s: f64, l: f64) -> [u8; 3] {
     };
     let m = l - c / 2.0;
     [r, g, b].map(|v| ((v + m) * 255.0).round().clamp(0.0, 255.0) as u8)
+}
+
+/// The most objects a pixel's [`Layers`] list (the farther ones are left
+/// out; the pictures' scale ends at [`LAYER_SHADES`]' length anyway).
+pub const MAX_LAYERS: usize = 64;
+
+/// The most surfaces a pixel's ray passes before [`Layers`] stops (an
+/// object of many triangles along one ray counts each).
+const MAX_STEPS: usize = 256;
+
+/// The longest side of a picture of what a method draws
+/// ([`drawn_picture`]): these show counts, not shapes, and cost a ray
+/// per surface a pixel passes.
+pub const DRAWN_SIDE: u32 = 200;
+
+/// Per pixel of a camera, every object its ray passes through, nearest
+/// first (each once): what a renderer drawing a set of objects would
+/// draw there, for any set ([`drawn_picture`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Layers {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Where each pixel's objects start in `objects` (one more entry than
+    /// pixels).
+    starts: Vec<u32>,
+    objects: Vec<u32>,
+}
+
+impl Layers {
+    /// Casts each pixel's centre ray of `camera` on through every surface
+    /// (the next hit from just beyond the last, by the exact tracer), up
+    /// to [`MAX_LAYERS`] objects and 256 surfaces.
+    pub fn render(tracer: &Tracer, camera: &Camera) -> Layers {
+        use rayon::prelude::*;
+        let rows: Vec<Vec<Vec<u32>>> = (0..camera.height)
+            .into_par_iter()
+            .map(|j| {
+                (0..camera.width)
+                    .map(|i| {
+                        let ray = camera.pixel_ray(i, j);
+                        let mut seen = Vec::new();
+                        let mut tmin = ray.tmin;
+                        for _ in 0..MAX_STEPS {
+                            let Some(hit) = tracer.closest_hit(&ray.with_tmin(tmin)) else {
+                                break;
+                            };
+                            if !seen.contains(&hit.object) {
+                                seen.push(hit.object);
+                                if seen.len() == MAX_LAYERS {
+                                    break;
+                                }
+                            }
+                            tmin = hit.t.next_up();
+                        }
+                        seen
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut starts = vec![0u32];
+        let mut objects = Vec::new();
+        for pixel in rows.into_iter().flatten() {
+            objects.extend(pixel);
+            starts.push(objects.len() as u32);
+        }
+        Layers {
+            width: camera.width,
+            height: camera.height,
+            starts,
+            objects,
+        }
+    }
+
+    /// The objects along pixel `k` (row by row from the top), nearest
+    /// first.
+    pub fn pixel(&self, k: usize) -> &[u32] {
+        &self.objects[self.starts[k] as usize..self.starts[k + 1] as usize]
+    }
+}
+
+/// The shades of [`drawn_picture`]: one object drawn at a pixel (pale
+/// yellow) to nine or more (deep purple), a viridis scale that keeps
+/// clear of red.
+pub const LAYER_SHADES: [[u8; 3]; 9] = [
+    [253, 231, 37],
+    [181, 222, 43],
+    [110, 206, 88],
+    [53, 183, 121],
+    [31, 158, 137],
+    [38, 130, 142],
+    [49, 104, 142],
+    [62, 73, 137],
+    [72, 40, 120],
+];
+
+/// What a method drawing `set` draws, as a picture of `layers`' pixels:
+/// each pixel tinted by how many objects of the set its ray passes
+/// ([`LAYER_SHADES`]: one is what exact visibility draws, more is
+/// overdraw), in [`DROPPED`] where the object seen there is not in the
+/// set (it would pop), [`BACKGROUND`] where the ray meets nothing. With
+/// the mean number of the set's objects a pixel that sees something
+/// passes (its depth complexity; the dropped pixels count what the set
+/// draws there too).
+pub fn drawn_picture(layers: &Layers, set: &ObjectSet) -> (Picture, f64) {
+    let n = (layers.width * layers.height) as usize;
+    let mut rgb = Vec::with_capacity(3 * n);
+    let (mut sum, mut hit) = (0u64, 0u64);
+    for k in 0..n {
+        let along = layers.pixel(k);
+        let drawn = along.iter().filter(|&&o| set.contains(o as usize)).count();
+        rgb.extend(match along.first() {
+            None => BACKGROUND,
+            Some(&o) if !set.contains(o as usize) => DROPPED,
+            Some(_) => LAYER_SHADES[drawn.min(LAYER_SHADES.len()) - 1],
+        });
+        if !along.is_empty() {
+            hit += 1;
+            sum += drawn as u64;
+        }
+    }
+    let picture = Picture {
+        width: layers.width,
+        height: layers.height,
+        rgb,
+    };
+    (
+        picture,
+        if hit > 0 {
+            sum as f64 / hit as f64
+        } else {
+            0.0
+        },
+    )
 }
 
 /// The map's outlines of the tree's cells (half blended over the pixel).
@@ -361,6 +500,82 @@ mod tests {
             let red = dropped.get(i, j) == DROPPED;
             assert_eq!(red, o == Some(a.0) || o == Some(b.0), "pixel {i} {j}");
         }
+    }
+
+    /// Three walls one behind the other, the nearest small: each pixel's
+    /// layers are the walls its ray crosses, and the pictures count the
+    /// set's among them, red where the nearest is not in the set.
+    #[test]
+    fn layers_count_what_a_set_draws_along_each_ray() {
+        use crate::query::View;
+        use crate::render::Camera;
+        let mut obj = String::new();
+        for (k, (x, h)) in [(1.0, 0.2), (2.0, 5.0), (3.0, 5.0)].into_iter().enumerate() {
+            obj += &format!(
+                "o wall{k}\nv {x} {} {}\nv {x} {h} {}\nv {x} {h} {h}\nv {x} {} {h}\nf {} {} {}\nf {} {} {}\n",
+                -h,
+                -h,
+                -h,
+                -h,
+                4 * k + 1,
+                4 * k + 2,
+                4 * k + 3,
+                4 * k + 1,
+                4 * k + 3,
+                4 * k + 4
+            );
+        }
+        let scene = crate::scene::load_obj_bytes("walls.obj", obj.as_bytes()).unwrap();
+        let tracer = Tracer::new(&scene);
+        let view = View::look(Vec3::ZERO, Vec3::X, Vec3::Z, 60f32.to_radians(), 1.0);
+        let layers = Layers::render(&tracer, &Camera::new(&view, 32, 32).unwrap());
+        let (centre, corner) = (16 * 32 + 16, 0);
+        assert_eq!(layers.pixel(centre), &[0, 1, 2]);
+        assert_eq!(layers.pixel(corner), &[1, 2]);
+        let set = |objects: &[usize]| {
+            let mut s = ObjectSet::new(3);
+            for &o in objects {
+                s.insert(o);
+            }
+            s
+        };
+        let at = |p: &Picture, k: usize| p.get((k % 32) as u32, (k / 32) as u32);
+        let (all, mean) = drawn_picture(&layers, &set(&[0, 1, 2]));
+        assert_eq!(at(&all, centre), LAYER_SHADES[2]);
+        assert_eq!(at(&all, corner), LAYER_SHADES[1]);
+        assert!(mean > 2.0 && mean < 3.0, "{mean}");
+        assert_eq!(all.count(DROPPED), 0);
+        let (front_culled, _) = drawn_picture(&layers, &set(&[1, 2]));
+        assert_eq!(at(&front_culled, centre), DROPPED);
+        assert_eq!(at(&front_culled, corner), LAYER_SHADES[1]);
+        let (middle_culled, mean) = drawn_picture(&layers, &set(&[0, 2]));
+        assert_eq!(at(&middle_culled, centre), LAYER_SHADES[1]);
+        assert_eq!(at(&middle_culled, corner), DROPPED);
+        assert!(mean > 1.0 && mean < 2.0, "{mean}");
+        let (none, mean) = drawn_picture(&layers, &set(&[]));
+        assert_eq!(none.count(DROPPED), 32 * 32);
+        assert_eq!(mean, 0.0);
+    }
+
+    /// The nearest layer of each pixel is the object the ID buffer sees
+    /// there (the same rays, the same exact tracer).
+    #[test]
+    fn the_nearest_layer_is_what_the_id_buffer_sees() {
+        use crate::render::{Camera, random_views};
+        use crate::scene::procedural::{SceneKind, generate};
+        let scene = generate(SceneKind::City, 1, 1);
+        let tracer = Tracer::new(&scene);
+        let mut deeper = 0;
+        for view in random_views(&scene.bounds(), 4, 90.0, 5) {
+            let camera = Camera::new(&view, 48, 40).unwrap();
+            let ids = IdBuffer::render(&tracer, &camera);
+            let layers = Layers::render(&tracer, &camera);
+            for (k, (_, o)) in ids.pixels().enumerate() {
+                assert_eq!(layers.pixel(k).first().copied(), o, "pixel {k}");
+                deeper += usize::from(layers.pixel(k).len() > 1);
+            }
+        }
+        assert!(deeper > 100, "{deeper} rays pass more than one object");
     }
 
     /// The map: the view box's shape, every eye white where it is, the

@@ -3,6 +3,7 @@
 
 use std::time::Instant;
 
+use super::report_image::{DRAWN_SIDE, Layers};
 use super::report_metrics::{MethodSummary, ViewMetrics, ViewTruth, frustum_set, truth_of};
 use crate::bitset::ObjectSet;
 use crate::geom::Aabb;
@@ -214,19 +215,30 @@ pub struct MethodRun {
     pub per_view: Vec<ViewMetrics>,
     /// Per view, the objects seen but not drawn.
     pub missed: Vec<Vec<u32>>,
+    /// The sets drawn in the first [`ReportParams::pictures`] views, for
+    /// the pictures of what the method draws.
+    pub pictured: Vec<ObjectSet>,
+    /// How many sets `pictured` keeps.
+    keep: usize,
 }
 
 impl MethodRun {
-    fn new(method: Method) -> Self {
+    /// A run keeping the sets of its first `keep` views.
+    fn new(method: Method, keep: usize) -> Self {
         Self {
             method,
             per_view: Vec::new(),
             missed: Vec::new(),
+            pictured: Vec::new(),
+            keep,
         }
     }
 
     /// Records the set `drawn` of one view, taking `seconds`.
     fn record(&mut self, scene: &Scene, truth: &ViewTruth, drawn: &ObjectSet, seconds: f64) {
+        if self.pictured.len() < self.keep {
+            self.pictured.push(drawn.clone());
+        }
         self.per_view
             .push(ViewMetrics::of(scene, truth, drawn, seconds));
         self.missed.push(
@@ -298,6 +310,10 @@ pub struct Experiment {
     pub truths: Vec<ViewTruth>,
     /// The ID buffers of the first [`ReportParams::pictures`] views.
     pub pictures: Vec<IdBuffer>,
+    /// The same views' [`Layers`], at most [`DRAWN_SIDE`] pixels a side:
+    /// what each method draws there ([`super::drawn_picture`] with
+    /// [`MethodRun::pictured`]).
+    pub layers: Vec<Layers>,
     /// Seconds spent rendering the ground truth, all views.
     pub truth_seconds: f64,
     /// Per method, in [`Method::ALL`] order (the oracle only when one was
@@ -390,7 +406,7 @@ pub fn run(
         .filter(|&&m| m != Method::Shrink || shrink.is_some())
         .filter(|&&m| m != Method::Both || (oracle.is_some() && shrink.is_some()))
         .filter(|&&m| m != Method::ConservativeTree || conservative.is_some())
-        .map(|&m| MethodRun::new(m))
+        .map(|&m| MethodRun::new(m, params.pictures))
         .collect();
     let grid = LazyGrid::new(scene);
     let sliced = if params.slices > 0 && (oracle.is_some() || shrink.is_some()) {
@@ -407,6 +423,7 @@ pub fn run(
     let mut out = Experiment {
         truths: Vec::with_capacity(views.len()),
         pictures: Vec::new(),
+        layers: Vec::new(),
         truth_seconds: 0.0,
         methods: Vec::new(),
         grid_costs: Vec::with_capacity(views.len()),
@@ -421,6 +438,10 @@ pub fn run(
         out.truth_seconds += start.elapsed().as_secs_f64();
         if i < params.pictures {
             out.pictures.push(ids);
+            let side = params.resolution.min(DRAWN_SIDE);
+            let small =
+                Camera::new(view, side, side).ok_or(ReportError::DegenerateView { index: i })?;
+            out.layers.push(Layers::render(tracer, &small));
         }
 
         let start = Instant::now();

@@ -173,6 +173,31 @@ fn check_pictures(dir: &Path, j: &serde_json::Value, html: &str, count: usize) {
             p["small"].as_str().unwrap()
         );
         assert!(html.contains(&link), "{link}");
+        // What each method draws: one picture a method, red exactly where
+        // its set lacks the object seen (at this resolution the same rays
+        // as the ground truth's).
+        let methods = j["methods"].as_array().unwrap();
+        let drawn = p["methods"].as_array().unwrap();
+        assert_eq!(drawn.len(), methods.len());
+        for (d, m) in drawn.iter().zip(methods) {
+            assert_eq!(d["method"], m["name"]);
+            let (w, h, rgb) = read_png(&dir.join(d["file"].as_str().unwrap()));
+            assert_eq!(
+                [w, h],
+                [0, 1].map(|k| d["size"][k].as_u64().unwrap() as u32)
+            );
+            assert_eq!((w, h), (resolution.min(200), resolution.min(200)));
+            let red = rgb.chunks_exact(3).filter(|c| *c == [255, 0, 0]).count() as u64;
+            assert_eq!(d["dropped_pixels"], red, "{d}");
+            let figures = &m["per_view"][v];
+            assert_eq!(d["objects"], figures["objects"], "{d}");
+            if resolution <= 200 {
+                assert_eq!(d["dropped_pixels"], figures["missing_pixels"], "{d}");
+            }
+            let layers = d["mean_layers"].as_f64().unwrap();
+            assert!(red > 0 || layers >= 1.0, "{d}");
+            assert!(html.contains(&format!("<img src=\"{}\"", d["file"].as_str().unwrap())));
+        }
     }
     // The map, with the pictures.
     let map = &j["map"];
@@ -185,7 +210,8 @@ fn check_pictures(dir: &Path, j: &serde_json::Value, html: &str, count: usize) {
         map["small"].as_str().unwrap()
     );
     assert!(html.contains(&link), "{link}");
-    assert_eq!(html.matches("<img").count(), count + 1);
+    let methods = j["methods"].as_array().unwrap().len();
+    assert_eq!(html.matches("<img").count(), count * (1 + methods) + 1);
 }
 
 /// Pictures of a tree that drops objects: red where it does, and none
