@@ -125,6 +125,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
     let viewer = load(args)?;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_io()
+        .enable_time()
         .build()
         .context("cannot start the server's runtime")?;
     runtime.block_on(serve(args, viewer))
@@ -200,6 +201,7 @@ async fn serve(args: &ViewArgs, viewer: Viewer) -> Result<()> {
         IpAddr::V4(ip) if ip.is_unspecified() => {
             format!("http://{}:{}/", Ipv4Addr::LOCALHOST, bound.port())
         }
+        IpAddr::V6(ip) if ip.is_unspecified() => format!("http://[::1]:{}/", bound.port()),
         IpAddr::V6(ip) => format!("http://[{ip}]:{}/", bound.port()),
         IpAddr::V4(ip) => format!("http://{ip}:{}/", bound.port()),
     };
@@ -213,15 +215,20 @@ async fn serve(args: &ViewArgs, viewer: Viewer) -> Result<()> {
             .collect::<Vec<_>>()
             .join(", ")
     };
+    // The address on stdout, for scripts (a closed stdout does not stop
+    // the server).
     let mut out = std::io::stdout().lock();
-    writeln!(out, "{url}")?;
-    out.flush()?;
+    let _ = writeln!(out, "{url}").and_then(|()| out.flush());
     drop(out);
     say!(
         "vis5d view: {} with {trees}, on {url} (mouse and W A S D to fly; Ctrl-C to stop)",
         printable(&viewer.scene_name)
     );
-    axum::serve(listener, router(Arc::new(viewer)))
+    let mut app = router(Arc::new(viewer));
+    if bound.ip().is_loopback() {
+        app = app.layer(axum::middleware::from_fn(local_only));
+    }
+    axum::serve(listener, app)
         .await
         .context("the server stopped")
 }
@@ -241,6 +248,43 @@ fn router(viewer: Arc<Viewer>) -> Router {
     }
     app.fallback(|| async { (StatusCode::NOT_FOUND, "no such page\n") })
         .with_state(viewer)
+}
+
+/// Refuses a request that names another host than this machine: a
+/// server on the loopback address answers only pages of the loopback
+/// address (a web page elsewhere that points a name of its own at
+/// 127.0.0.1, "DNS rebinding", gets a 403 instead of the scene).
+async fn local_only(request: axum::extract::Request, next: axum::middleware::Next) -> Response {
+    let host = request
+        .headers()
+        .get(header::HOST)
+        .and_then(|h| h.to_str().ok())
+        .unwrap_or("");
+    let name = match host.rsplit_once(':') {
+        Some((name, port)) if port.bytes().all(|b| b.is_ascii_digit()) => name,
+        _ => host,
+    };
+    if ["127.0.0.1", "localhost", "[::1]", ""].contains(&name.to_ascii_lowercase().as_str()) {
+        next.run(request).await
+    } else {
+        (
+            StatusCode::FORBIDDEN,
+            format!(
+                "Host {:?}: this viewer listens on the loopback address and answers only \
+                 http://127.0.0.1 or http://localhost (start it with --host to serve others)\n",
+                short(host)
+            ),
+        )
+            .into_response()
+    }
+}
+
+/// At most 40 characters of `s`, for messages that quote the input.
+fn short(s: &str) -> String {
+    match s.char_indices().nth(40) {
+        Some((end, _)) => format!("{}...", &s[..end]),
+        None => s.to_owned(),
+    }
 }
 
 /// A 400 with a message.
@@ -300,11 +344,24 @@ struct Asked<'a> {
 
 /// Reads a query's parameters: `pos` and `dir` required, the rest
 /// optional; an error message for the 400 otherwise.
+/// A query string's parameters, each named once.
+fn parameters(pairs: Vec<(String, String)>) -> Result<HashMap<String, String>, String> {
+    let mut q = HashMap::new();
+    for (k, v) in pairs {
+        if q.contains_key(&k) {
+            return Err(format!("{} is given twice", short(&k)));
+        }
+        q.insert(k, v);
+    }
+    Ok(q)
+}
+
 fn asked<'a>(v: &'a Viewer, q: &HashMap<String, String>) -> Result<Asked<'a>, String> {
     for k in q.keys() {
         if !["pos", "dir", "up", "fov", "aspect", "pvs"].contains(&k.as_str()) {
             return Err(format!(
-                "unknown parameter {k:?} (known: pos, dir, up, fov, aspect, pvs)"
+                "unknown parameter {:?} (known: pos, dir, up, fov, aspect, pvs)",
+                short(k)
             ));
         }
     }
@@ -316,7 +373,7 @@ fn asked<'a>(v: &'a Viewer, q: &HashMap<String, String>) -> Result<Asked<'a>, St
         Some(k) => {
             let k: usize = k
                 .parse()
-                .map_err(|_| format!("pvs={k:?}: expected a tree's index"))?;
+                .map_err(|_| format!("pvs={:?}: expected a tree's index", short(k)))?;
             v.trees.get(k).ok_or_else(|| {
                 format!(
                     "pvs={k}: there are {} trees (0 to {})",
@@ -328,7 +385,7 @@ fn asked<'a>(v: &'a Viewer, q: &HashMap<String, String>) -> Result<Asked<'a>, St
     };
     let vector = |name: &str| -> Result<Option<DVec3>, String> {
         q.get(name)
-            .map(|s| parse_point(s).map_err(|e| format!("{name}={s:?}: {e}")))
+            .map(|s| parse_point(s).map_err(|e| format!("{name}={:?}: {}", short(s), short(&e))))
             .transpose()
     };
     let pos = vector("pos")?.ok_or("pos=x,y,z is required")?;
@@ -350,7 +407,7 @@ fn asked<'a>(v: &'a Viewer, q: &HashMap<String, String>) -> Result<Asked<'a>, St
         q.get(name).map_or(Ok(default), |s| {
             s.trim()
                 .parse::<f32>()
-                .map_err(|e| format!("{name}={s:?}: {e}"))
+                .map_err(|e| format!("{name}={:?}: {e}", short(s)))
         })
     };
     let fov = number("fov", 90.0)?;
@@ -360,15 +417,20 @@ fn asked<'a>(v: &'a Viewer, q: &HashMap<String, String>) -> Result<Asked<'a>, St
         ));
     }
     let aspect = number("aspect", 1.0)?;
-    let widest = 2.0 * (f64::from(aspect) * (0.5 * f64::from(fov).to_radians()).tan()).atan();
-    if !(aspect > 0.0 && aspect.is_finite() && widest < 179.9f64.to_radians()) {
+    if !(aspect > 0.0 && aspect.is_finite()) {
         return Err(format!(
-            "aspect={aspect}: width over height must be above 0 and leave the horizontal field of view under 180 degrees"
+            "aspect={aspect}: width over height must be a number above 0"
+        ));
+    }
+    let look = View::look(pos.as_vec3(), dir, up, fov.to_radians(), aspect);
+    if look.fov_x >= std::f32::consts::PI {
+        return Err(format!(
+            "aspect={aspect}: with fov={fov} the horizontal field of view comes to 180 degrees"
         ));
     }
     let view = WorldView {
         position: pos,
-        view: View::look(pos.as_vec3(), dir, up, fov.to_radians(), aspect),
+        view: look,
         up_given: true,
     };
     Ok(Asked {
@@ -389,8 +451,8 @@ fn ray_point(frame: &Frame, pos: DVec3, dir: Vec3) -> [f32; DIMS] {
     r
 }
 
-async fn query(State(v): State<Arc<Viewer>>, Query(q): Query<HashMap<String, String>>) -> Response {
-    let a = match asked(&v, &q) {
+async fn query(State(v): State<Arc<Viewer>>, Query(q): Query<Vec<(String, String)>>) -> Response {
+    let a = match parameters(q).and_then(|q| asked(&v, &q)) {
         Ok(a) => a,
         Err(e) => return bad(e),
     };
@@ -404,7 +466,12 @@ async fn query(State(v): State<Arc<Viewer>>, Query(q): Query<HashMap<String, Str
         };
     let visible: Vec<usize> = set.iter().collect();
     let triangles: u64 = visible.iter().map(|&i| u64::from(v.objects[i].1)).sum();
-    let leaf = pvs.leaf_at(ray_point(&frame, a.pos, a.dir)).map(|l| l.0);
+    // The leaf where the eye is; none where the answer is every object
+    // (the eye's box, rounded outwards, leaves the view box).
+    let leaf = match answer {
+        Answer::Tree => pvs.leaf_at(ray_point(&frame, a.pos, a.dir)).map(|l| l.0),
+        _ => None,
+    };
     json(serde_json::json!({
         "visible": visible,
         "leaf": leaf,
@@ -413,10 +480,11 @@ async fn query(State(v): State<Arc<Viewer>>, Query(q): Query<HashMap<String, Str
     }))
 }
 
-async fn cell(
-    State(v): State<Arc<Viewer>>,
-    Query(mut q): Query<HashMap<String, String>>,
-) -> Response {
+async fn cell(State(v): State<Arc<Viewer>>, Query(q): Query<Vec<(String, String)>>) -> Response {
+    let mut q = match parameters(q) {
+        Ok(q) => q,
+        Err(e) => return bad(e),
+    };
     for k in ["up", "fov", "aspect"] {
         if q.contains_key(k) {
             return bad(format!("unknown parameter {k:?} (known: pos, dir, pvs)"));

@@ -11,7 +11,7 @@ use glam::{DVec3, Vec3};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use vis5d::geom::cell::direction_to_angles;
-use vis5d::query::{Pvs, View};
+use vis5d::query::{Answer, Pvs, View};
 use vis5d::render::{Camera, IdBuffer};
 use vis5d::trace::Tracer;
 
@@ -60,11 +60,15 @@ fn start(model: &str, trees: &[&Path]) -> Server {
 
 /// One GET: the status and the body.
 fn get(server: &Server, path: &str) -> (u16, Vec<u8>) {
+    get_as(server, path, &server.address)
+}
+
+/// One GET naming `host` in its Host header.
+fn get_as(server: &Server, path: &str, host: &str) -> (u16, Vec<u8>) {
     let mut s = TcpStream::connect(&server.address).unwrap();
     write!(
         s,
-        "GET {path} HTTP/1.1\r\nHost: {}\r\nConnection: close\r\n\r\n",
-        server.address
+        "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
     )
     .unwrap();
     let mut raw = Vec::new();
@@ -140,11 +144,16 @@ impl Ask {
         );
         let positions = frame.box_to_local(self.pos, self.pos);
         let mut set = pvs.new_set();
-        pvs.query_view_from(&positions, &view.to_local(&frame, self.pos), &mut set)
+        let answer = pvs
+            .query_view_from(&positions, &view.to_local(&frame, self.pos), &mut set)
             .unwrap();
         let p = frame.to_local(self.pos);
         let (theta, phi) = direction_to_angles(frame.dir_to_local(self.dir));
-        let leaf = pvs.leaf_at([p.x, p.y, p.z, theta, phi]).map(|l| l.0);
+        // No leaf where the answer is every object.
+        let leaf = match answer {
+            Answer::Tree => pvs.leaf_at([p.x, p.y, p.z, theta, phi]).map(|l| l.0),
+            _ => None,
+        };
         (set.iter().collect(), leaf)
     }
 }
@@ -312,13 +321,49 @@ fn the_api_answers_as_the_library_and_refuses_bad_parameters() {
         ),
         ("/api/cell", "pos=x,y,z is required"),
         ("/api/cell?pos=1,1,1&fov=20", "unknown parameter"),
+        (
+            &format!("/api/query?{good_view}&pos=0,0,0"),
+            "pos is given twice",
+        ),
+        (
+            &format!("/api/cell?{good_view}&dir=0,1,0"),
+            "dir is given twice",
+        ),
+        (
+            &format!("/api/query?pos=1,1,{}x&dir=1,0,0", "9".repeat(5000)),
+            "...",
+        ),
     ] {
         let (status, body) = get(&server, query);
         assert_eq!(status, 400, "{query}: {}", text(&body));
         assert!(text(&body).contains(message), "{query}: {}", text(&body));
-        assert!(body.len() > 10, "{query}: {}", text(&body));
+        assert!(
+            body.len() > 10 && body.len() < 300,
+            "{query}: {}",
+            text(&body)
+        );
     }
     assert_eq!(get(&server, "/nothing/here").0, 404);
+    // Wide but under 180 degrees either way: answered.
+    assert_eq!(
+        get(&server, &format!("/api/query?{good_view}&fov=179.95")).0,
+        200
+    );
+    assert_eq!(
+        get(
+            &server,
+            &format!("/api/query?{good_view}&fov=90&aspect=1e9")
+        )
+        .0,
+        400
+    );
+    // Only pages of this machine's names are served (no DNS rebinding).
+    for host in ["localhost:1234", "127.0.0.1", "LOCALHOST"] {
+        assert_eq!(get_as(&server, "/api/info", host).0, 200, "{host}");
+    }
+    let (status, body) = get_as(&server, "/api/info", "evil.example:80");
+    assert_eq!(status, 403);
+    assert!(text(&body).contains("loopback"), "{}", text(&body));
     assert_eq!(get(&server, &format!("/api/query?{good_view}")).0, 200);
     let (status, page) = get(&server, "/");
     assert_eq!(status, 200);
@@ -387,6 +432,25 @@ fn a_tree_of_another_scene_is_refused() {
     }
 }
 
+/// The DOM of `url` once headless Chromium has run its scripts (for at
+/// most two minutes of virtual time).
+fn dump_dom(chromium: &str, url: &str) -> String {
+    let out = Command::new(chromium)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--window-size=640,480",
+            "--virtual-time-budget=120000",
+            "--dump-dom",
+        ])
+        .arg(url)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    text(&out.stdout)
+}
+
 /// Flies the page along `views` (x,y,z,dx,dy,dz each) in headless
 /// Chromium, checking for popping, and returns the frames it logged.
 fn fly(chromium: &str, server: &Server, tree: usize, views: &[[f64; 6]]) -> Vec<serde_json::Value> {
@@ -399,20 +463,7 @@ fn fly(chromium: &str, server: &Server, tree: usize, views: &[[f64; 6]]) -> Vec<
         server.address,
         path.join("%3B")
     );
-    let out = Command::new(chromium)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--window-size=640,480",
-            "--virtual-time-budget=120000",
-            "--dump-dom",
-        ])
-        .arg(&url)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", text(&out.stderr));
-    let dom = text(&out.stdout);
+    let dom = dump_dom(chromium, &url);
     let log = dom
         .split_once("<pre id=\"log\">")
         .and_then(|(_, rest)| rest.split_once("</pre>"))
@@ -446,6 +497,9 @@ fn the_page_flies_a_path_and_marks_popping_in_headless_chromium() {
         let a = 0.6 * f64::from(k);
         views.push([p.x, p.y, p.z, a.cos(), a.sin(), -0.1]);
     }
+    // Straight down (the page finds the camera's up on its own).
+    let p = lo + (hi - lo) * DVec3::new(0.3, 0.5, 0.55);
+    views.push([p.x, p.y, p.z, 0.0, 0.0, -1.0]);
     // And one from outside the view box: every object in the frustum.
     let c = (lo + hi) * 0.5;
     views.push([c.x, c.y, hi.z + 1.0, 1.0, 0.0, -0.3]);
@@ -499,9 +553,26 @@ fn the_page_flies_a_path_and_marks_popping_in_headless_chromium() {
             missing += f["missing"].as_array().unwrap().len();
         }
         assert_eq!(frames.last().unwrap()["answer"], "everything");
+        assert!(frames.last().unwrap()["leaf"].is_null());
         if tree == 1 {
             assert!(missing > 0, "the poor tree drops nothing the page sees");
         }
     }
     assert_eq!(checked, 2 * views.len());
+}
+
+/// Without a tree the page draws every object and flies (no query).
+#[test]
+fn without_a_tree_the_page_draws_everything() {
+    let Some(chromium) = chromium() else { return };
+    let server = start("scenes/apartment.obj", &[]);
+    let (status, body) = get(&server, "/api/query?pos=1,1,1&dir=1,0,0");
+    assert_eq!(status, 400);
+    assert!(text(&body).contains("--pvs"), "{}", text(&body));
+    let dom = dump_dom(
+        chromium,
+        &format!("http://{}/?pos=2,2,1.5&dir=0,0,-1", server.address),
+    );
+    assert!(!dom.contains("failed"), "{dom}");
+    assert!(dom.contains("<b id=\"objects\">174 of 174</b>"), "{dom}");
 }

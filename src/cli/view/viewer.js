@@ -112,13 +112,22 @@ function fit() {
 
 function aim() {
   fit();
+  // Everything in front stays in the frustum, however far the camera flies.
+  const far = Math.max(diag * 4, 1.05 * Math.max(...[0, 1, 2, 3, 4, 5, 6, 7].map((k) => camera.position.distanceTo(
+    new THREE.Vector3(k & 1 ? bounds.max.x : bounds.min.x, k & 2 ? bounds.max.y : bounds.min.y,
+      k & 4 ? bounds.max.z : bounds.min.z)))));
+  if (far !== camera.far) {
+    camera.far = far;
+    camera.updateProjectionMatrix();
+  }
+  camera.up.copy(Math.abs(forward.dot(up)) > 0.999999 ? new THREE.Vector3().crossVectors(rightOf(forward), forward) : up);
   camera.lookAt(camera.position.clone().add(forward));
   camera.updateMatrixWorld();
 }
 aim();
 
 // The tree list.
-let tree = Math.min(Number(params.get('tree')) || 0, Math.max(info.pvs.length - 1, 0));
+let tree = Math.min(Math.max(Math.trunc(Number(params.get('tree'))) || 0, 0), Math.max(info.pvs.length - 1, 0));
 for (const [k, t] of info.pvs.entries()) {
   const o = document.createElement('option');
   o.value = k;
@@ -126,7 +135,10 @@ for (const [k, t] of info.pvs.entries()) {
   $('tree').append(o);
 }
 $('tree').value = tree;
-if (info.pvs.length === 0) $('tree-row').textContent = 'no tree: start with --pvs FILE.v5d to cull';
+if (info.pvs.length === 0) {
+  $('tree').hidden = true;
+  $('tree-note').textContent = 'none: start with --pvs FILE.v5d to cull';
+}
 
 // What a view's answer does to the page.
 const fmt = (x) => x.toLocaleString('en');
@@ -137,12 +149,21 @@ const cellBox = new THREE.Box3Helper(new THREE.Box3(), 0x1b4fd8);
 cellBox.visible = false;
 scene.add(cellBox);
 
+// The camera's right: across the forward direction and the scene's up, or
+// (looking straight along up) across another axis.
+function rightOf(f) {
+  const r = new THREE.Vector3().crossVectors(f, up);
+  if (r.lengthSq() < 1e-12) r.crossVectors(f, new THREE.Vector3(up.z, up.x, up.y));
+  return r.normalize();
+}
+
 function pose() {
-  const right = new THREE.Vector3().crossVectors(forward, up).normalize();
+  const right = rightOf(forward);
   const camUp = new THREE.Vector3().crossVectors(right, forward).normalize();
   return { pos: camera.position.clone(), dir: forward.clone(), up: camUp, fov: camera.fov, aspect: camera.aspect };
 }
-const xyz = (v) => `${v.x},${v.y},${v.z}`;
+// (A '+' of an exponent would read as a space in a query string.)
+const xyz = (v) => `${v.x},${v.y},${v.z}`.replace(/\+/g, '%2B');
 const queryUrl = (p) => `/api/query?pos=${xyz(p.pos)}&dir=${xyz(p.dir)}&up=${xyz(p.up)}` +
   `&fov=${p.fov}&aspect=${p.aspect}&pvs=${tree}`;
 
@@ -242,6 +263,10 @@ function check(p) {
 // One query for a pose, applied.
 async function answerFor(p) {
   const answer = await getJson(queryUrl(p));
+  if ($('title').className === 'warn') {
+    $('title').className = '';
+    $('title').textContent = 'vis5d view: ' + info.scene.split('/').pop();
+  }
   apply(answer);
   showCell(p, answer.leaf).catch(fail);
   const result = { answer };
@@ -307,9 +332,10 @@ function interactive() {
     const [dx, dy] = [e.clientX - dragging[0], e.clientY - dragging[1]];
     dragging = [e.clientX, e.clientY];
     forward.applyAxisAngle(up, -dx * 0.004);
-    const right = new THREE.Vector3().crossVectors(forward, up).normalize();
-    const turned = forward.clone().applyAxisAngle(right, -dy * 0.004);
-    if (Math.abs(turned.dot(up)) < 0.995) forward.copy(turned);
+    const turned = forward.clone().applyAxisAngle(rightOf(forward), -dy * 0.004);
+    // Never over the top; a step away from straight up or down always goes.
+    const steep = (v) => Math.abs(v.dot(up));
+    if (steep(turned) < 0.995 || steep(turned) < steep(forward)) forward.copy(turned);
     forward.normalize();
   });
 
@@ -324,7 +350,7 @@ function interactive() {
   function frame(now) {
     const dt = Math.min((now - last) / 1000, 0.1);
     last = now;
-    const right = new THREE.Vector3().crossVectors(forward, up).normalize();
+    const right = rightOf(forward);
     const move = new THREE.Vector3();
     const k = (a, b) => (keys.has(a) || keys.has(b) ? 1 : 0);
     move.addScaledVector(forward, k('KeyW', 'ArrowUp') - k('KeyS', 'ArrowDown'));
