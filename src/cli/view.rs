@@ -445,10 +445,7 @@ fn asked<'a>(v: &'a Viewer, q: &HashMap<String, String>) -> Result<Asked<'a>, St
 fn ray_point(frame: &Frame, pos: DVec3, dir: Vec3) -> [f32; DIMS] {
     let p = frame.to_local(pos);
     let (theta, phi) = direction_to_angles(frame.dir_to_local(dir));
-    let mut r = [p.x, p.y, p.z, 0.0, 0.0];
-    r[THETA] = theta;
-    r[PHI] = phi;
-    r
+    [p.x, p.y, p.z, theta, phi]
 }
 
 async fn query(State(v): State<Arc<Viewer>>, Query(q): Query<Vec<(String, String)>>) -> Response {
@@ -505,11 +502,7 @@ async fn cell(State(v): State<Arc<Viewer>>, Query(q): Query<Vec<(String, String)
         // Outside the view box no leaf answers (every object is drawn).
         return json(serde_json::json!({"leaf": null}));
     };
-    let space = vis5d::geom::Aabb::new(
-        Vec3::new(c.lo[0], c.lo[1], c.lo[2]),
-        Vec3::new(c.hi[0], c.hi[1], c.hi[2]),
-    );
-    let (min, max) = frame.box_to_world(&space);
+    let (min, max) = frame.box_to_world(&c.space());
     json(serde_json::json!({
         "leaf": leaf,
         "min": min.to_array(),
