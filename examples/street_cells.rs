@@ -58,7 +58,7 @@ use vis5d::shrink::{ShrinkOracle, ShrinkParams};
 use vis5d::slices::SlicedScene;
 use vis5d::trace::{Ray, Tracer};
 
-const USAGE: &str = "usage: street_cells MODEL CELLS SIZE [--height H] [--rooms] [--anywhere] [--rays N] [--aimed N] [--split K]\n  [--seed S] [--gpu] [--list] [--method extended|shrink|both] [--slices N]\n  [--sweep-planes N] [--sweep-patches N] [--sweep-extension X]\n  [--occludee-depth N] [--shaft-budget N] [--shaft-depth N]";
+const USAGE: &str = "usage: street_cells MODEL CELLS SIZE [--height H] [--rooms] [--anywhere] [--rays N] [--aimed N] [--split K]\n  [--seed S] [--gpu] [--list] [--method extended|shrink|both] [--slices N]\n  [--sweep-planes N] [--sweep-patches N] [--sweep-extension X]\n  [--occludee-depth N] [--shaft-budget N] [--shaft-depth N] [--seal-voxels N]";
 
 /// The command line.
 struct Args {
@@ -157,6 +157,11 @@ fn parse() -> Result<Args, String> {
                 args.params.shaft_depth = value("--shaft-depth")?
                     .parse()
                     .map_err(|_| "--shaft-depth must be a count")?
+            }
+            "--seal-voxels" => {
+                args.params.seal_voxels = value("--seal-voxels")?
+                    .parse()
+                    .map_err(|_| "--seal-voxels must be a count")?
             }
             "--method" => {
                 args.method = value("--method")?;

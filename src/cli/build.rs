@@ -219,6 +219,13 @@ pub struct BuildArgs {
     #[arg(long, requires = "conservative", default_value_t = 0,
           value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
     shaft_budget: u32,
+    /// With --conservative: sealed rooms (`vis5d oracle --seal-voxels`),
+    /// the free space between the closed solids in connected pieces over
+    /// a grid of at most about this many voxels; what no free path from a
+    /// cell reaches is hidden [0 (off) to 268,435,456].
+    #[arg(long, requires = "conservative", default_value_t = 1 << 24,
+          value_parser = clap::value_parser!(u32).range(0..=(1 << 28)))]
+    seal_voxels: u32,
     /// With --conservative: rasterise the oracle's Depth Maps on the GPU
     /// (wgpu) where one exists. The bake uses the CPU by default: one map
     /// per submission, the GPU is slower per cell today (notes/oracle.md:
@@ -934,6 +941,7 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
         sweep_planes: args.sweep_planes.into(),
         sweep_patches: args.sweep_patches.into(),
         shaft_budget: args.shaft_budget as usize,
+        seal_voxels: args.seal_voxels as usize,
         ..OracleParams::default()
     };
     let oracle = Oracle::new(&scene, oracle_params, rasteriser)?;

@@ -62,6 +62,15 @@ pub struct OracleFlags {
     /// Shafts: the most cuts along one path [0 to 32].
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u8).range(0..=32))]
     pub shaft_depth: u8,
+    /// Sealed rooms: the free space between the closed solids (walls,
+    /// slabs, closed doors and windows) is cut into connected pieces over
+    /// a grid of at most about this many voxels, and what no free path
+    /// from the cell reaches is hidden; the grid is built once, at the
+    /// first cell above every floorless solid's floor [0 (off) to
+    /// 268,435,456].
+    #[arg(long, default_value_t = 1 << 24,
+          value_parser = clap::value_parser!(u32).range(0..=(1 << 28)))]
+    pub seal_voxels: u32,
     /// Rasterise the Depth Maps (with `--method shrink`, the cube map) on
     /// the CPU even when a GPU adapter exists (the default uses the GPU
     /// through wgpu, and the CPU when there is none).
@@ -82,6 +91,7 @@ impl OracleFlags {
             occludee_depth: self.occludee_depth.into(),
             shaft_budget: self.shaft_budget as usize,
             shaft_depth: self.shaft_depth.into(),
+            seal_voxels: self.seal_voxels as usize,
             ..OracleParams::default()
         };
         p.validate().map_err(|e| match &e {
@@ -211,6 +221,9 @@ struct OracleJson<'a> {
     cluster_hidden: usize,
     /// Objects proved hidden only shaft by shaft.
     shaft_hidden: usize,
+    /// Objects proved hidden by the free space: no path between the
+    /// closed solids leads to them from the cell.
+    sealed_hidden: usize,
     /// Closed convex solids the cell reaches into by a whole slab (or
     /// lies in).
     inside_solids: usize,
@@ -439,6 +452,7 @@ pub fn run(args: &OracleArgs) -> Result<()> {
         sweep_hidden: report.sweep_hidden,
         cluster_hidden: report.cluster_hidden,
         shaft_hidden: report.shaft_hidden,
+        sealed_hidden: report.sealed_hidden,
         inside_solids: report.inside_solids,
         projected_from: [
             frame.to_world(report.projected_from.min).to_array(),
@@ -511,6 +525,13 @@ pub fn run(args: &OracleArgs) -> Result<()> {
             out,
             "  occludee clusters: {} more objects hidden cluster by cluster",
             json.cluster_hidden
+        )?;
+    }
+    if json.sealed_hidden > 0 {
+        writeln!(
+            out,
+            "  sealed: {} objects no free path from the cell reaches",
+            json.sealed_hidden
         )?;
     }
     if json.shaft_hidden > 0 {

@@ -72,6 +72,7 @@ mod oracle_patches;
 mod oracle_plane;
 mod oracle_project;
 mod oracle_raster;
+mod oracle_sealed;
 mod oracle_shaft;
 mod oracle_slice;
 mod oracle_sweep;
@@ -86,6 +87,7 @@ pub use oracle_occluders::OccluderCounts;
 pub use oracle_plane::{MapJob, ProjectedOccluder, cpu_rasterise};
 pub(crate) use oracle_project::corners;
 pub use oracle_raster::Rasteriser;
+pub use oracle_sealed::SealedCounts;
 
 /// A margin for the tracer's rounding around the cell `[cmin, cmax]` of
 /// `scene`: 8 f32 ulps of the extent and the largest coordinate of the
@@ -162,6 +164,11 @@ pub struct OracleParams {
     pub shaft_budget: usize,
     /// Shafts: the most cuts along one path (at most 32).
     pub shaft_depth: usize,
+    /// Sealed rooms (`oracle_sealed.rs`): the free space between the
+    /// closed solids, in connected components over a grid of about this
+    /// many voxels at most; an object no free path from the cell reaches
+    /// is hidden (0: not tried).
+    pub seal_voxels: usize,
 }
 
 impl Default for OracleParams {
@@ -180,6 +187,7 @@ impl Default for OracleParams {
             occludee_depth: 6,
             shaft_budget: 512,
             shaft_depth: 16,
+            seal_voxels: 1 << 24,
         }
     }
 }
@@ -232,6 +240,9 @@ impl OracleParams {
         }
         if self.shaft_depth > 32 {
             return Err(bad("shaft_depth", "in 0..=32", &self.shaft_depth));
+        }
+        if self.seal_voxels > 1 << 28 {
+            return Err(bad("seal_voxels", "at most 268435456", &self.seal_voxels));
         }
         if !(1..=16).contains(&self.occludee_depth) {
             return Err(bad("occludee_depth", "in 1..=16", &self.occludee_depth));
@@ -306,6 +317,9 @@ pub struct CellReport {
     pub cluster_hidden: usize,
     /// Objects proved hidden only shaft by shaft (`oracle_shaft.rs`).
     pub shaft_hidden: usize,
+    /// Objects proved hidden by the free space (`oracle_sealed.rs`): no
+    /// path between the closed solids leads from the cell to them.
+    pub sealed_hidden: usize,
     /// Closed convex solids the cell reaches into by a whole slab (or lies
     /// in): the projections ran from the rest of the cell, and what meets
     /// their boxes is kept (`oracle_inside.rs`).
@@ -334,6 +348,8 @@ pub struct Oracle<'a> {
     shafts: Option<oracle_shaft::Shafts>,
     /// Rays for the shafts' witnesses (none when shafts are off).
     tracer: Option<crate::trace::Tracer>,
+    /// The free space's components (none when off or without solids).
+    sealed: Option<oracle_sealed::Sealed>,
     params: OracleParams,
     rasteriser: Rasteriser,
 }
@@ -362,6 +378,7 @@ impl<'a> Oracle<'a> {
         let shafts =
             (params.shaft_budget > 0).then(|| oracle_shaft::Shafts::new(&occluders, &solids));
         let tracer = (params.shaft_budget > 0).then(|| crate::trace::Tracer::new(scene));
+        let sealed = oracle_sealed::Sealed::new(scene, &solids, params.seal_voxels);
         Ok(Self {
             scene,
             occluders,
@@ -372,6 +389,7 @@ impl<'a> Oracle<'a> {
             hierarchy: BoxTree::new(&boxes),
             shafts,
             tracer,
+            sealed,
             params,
             rasteriser,
         })
@@ -406,6 +424,12 @@ impl<'a> Oracle<'a> {
     /// the bottom).
     pub fn solid_count(&self) -> usize {
         self.solids.len()
+    }
+
+    /// The grid of the free space between the solids (all zero when
+    /// [`OracleParams::seal_voxels`] is 0 or the scene has no solid).
+    pub fn sealed_counts(&self) -> SealedCounts {
+        self.sealed.as_ref().map(|s| s.counts()).unwrap_or_default()
     }
 
     /// The objects that may be visible from some point of `cell`, the
@@ -489,6 +513,7 @@ impl<'a> Oracle<'a> {
                 sweep_hidden: 0,
                 cluster_hidden: 0,
                 shaft_hidden: 0,
+                sealed_hidden: 0,
                 inside_solids: 0,
                 projected_from: *cell,
                 times: CellTimes::default(),
@@ -510,6 +535,25 @@ impl<'a> Oracle<'a> {
         for i in self.scene.empty_objects() {
             hidden.insert(i);
         }
+        // What no free path from the cell reaches.
+        let start = Instant::now();
+        let mut sealed_hidden = 0;
+        if let Some(seen) = self.sealed.as_ref().and_then(|s| {
+            s.visible(
+                self.scene,
+                &self.solids,
+                &self.hierarchy,
+                (cmin, cmax),
+                slack,
+            )
+        }) {
+            for i in (0..objects).filter(|&i| !seen.contains(i)) {
+                if hidden.insert(i) {
+                    sealed_hidden += 1;
+                }
+            }
+        }
+        times.select += start.elapsed();
         // The part of the cell inside closed convex solids sees only what
         // lies within them: project from the rest, keep what meets them.
         let start = Instant::now();
@@ -571,6 +615,7 @@ impl<'a> Oracle<'a> {
                 sweep_hidden: 0,
                 cluster_hidden: 0,
                 shaft_hidden: 0,
+                sealed_hidden,
                 inside_solids: 1,
                 projected_from,
                 times,
@@ -818,6 +863,7 @@ impl<'a> Oracle<'a> {
             sweep_hidden,
             cluster_hidden,
             shaft_hidden,
+            sealed_hidden,
             inside_solids: inside.len(),
             projected_from,
             times,

@@ -891,3 +891,126 @@ fn the_maps_keep_what_grazing_rays_see_past_a_triangle() {
         assert!(oracle.cell(&cell, None).visible.contains(1));
     }
 }
+
+/// A closed prism: the convex polygon `base` (counter-clockwise in x, y)
+/// extruded from `z0` to `z1`.
+fn prism(base: &[(f32, f32)], z0: f32, z1: f32) -> Vec<[Vec3; 3]> {
+    let p = |(x, y): (f32, f32), z: f32| Vec3::new(x, y, z);
+    let mut t = Vec::new();
+    for k in 1..base.len() - 1 {
+        t.push([p(base[0], z0), p(base[k + 1], z0), p(base[k], z0)]);
+        t.push([p(base[0], z1), p(base[k], z1), p(base[k + 1], z1)]);
+    }
+    for k in 0..base.len() {
+        let (a, b) = (base[k], base[(k + 1) % base.len()]);
+        t.push([p(a, z0), p(b, z0), p(b, z1)]);
+        t.push([p(a, z0), p(b, z1), p(a, z1)]);
+    }
+    t
+}
+
+/// A room of separate solids, as BIM models give them: a floor and a
+/// ceiling slab, four walls standing between them with mitred corners
+/// (each pair shares a slanted face no grid plane follows), a door filling
+/// a doorway of the east wall, and a table standing on the floor. Objects
+/// `[outside, above, below]` are returned with the scene.
+fn walled_room(door: bool) -> (Scene, [usize; 3]) {
+    let t = 0.2;
+    let (w, h) = (6.0, 3.0);
+    let mut objects = vec![
+        boxed(Vec3::new(-t, -t, -t), Vec3::new(w + t, w + t, 0.0)),
+        boxed(Vec3::new(-t, -t, h), Vec3::new(w + t, w + t, h + t)),
+        // South, west and north walls, mitred at their corners.
+        prism(&[(-t, -t), (w + t, -t), (w, 0.0), (0.0, 0.0)], 0.0, h),
+        prism(&[(-t, w + t), (-t, -t), (0.0, 0.0), (0.0, w)], 0.0, h),
+        prism(&[(w + t, w + t), (-t, w + t), (0.0, w), (w, w)], 0.0, h),
+        // The east wall in three parts around a doorway from y = 2 to 3,
+        // 2 m high.
+        prism(&[(w + t, -t), (w + t, 2.0), (w, 2.0), (w, 0.0)], 0.0, h),
+        prism(&[(w, 3.0), (w + t, 3.0), (w + t, w + t), (w, w)], 0.0, h),
+        boxed(Vec3::new(w, 2.0, 2.0), Vec3::new(w + t, 3.0, h)),
+        boxed(Vec3::new(2.0, 2.0, 0.0), Vec3::new(3.0, 3.0, 0.8)),
+    ];
+    if door {
+        objects.push(boxed(Vec3::new(w, 2.0, 0.0), Vec3::new(w + t, 3.0, 2.0)));
+    }
+    let first = objects.len();
+    objects.push(boxed(Vec3::new(10.0, 2.0, 0.5), Vec3::new(11.0, 3.0, 1.5)));
+    objects.push(boxed(Vec3::new(2.0, 2.0, 4.0), Vec3::new(3.0, 3.0, 5.0)));
+    objects.push(boxed(Vec3::new(2.0, 2.0, -2.0), Vec3::new(3.0, 3.0, -1.0)));
+    (scene_of(objects), [first, first + 1, first + 2])
+}
+
+/// Sealed rooms (stop 42): from inside the closed room nothing outside
+/// is reached by a free path, whatever the maps prove; with the door
+/// gone, everything is. Rays agree either way, from the room and from
+/// cells reaching into its walls and its floor.
+#[test]
+fn a_room_of_separate_solids_is_sealed_by_its_door() {
+    let room = Aabb::new(Vec3::new(0.5, 0.5, 0.5), Vec3::new(5.5, 5.5, 2.5));
+    let (scene, outside) = walled_room(true);
+    let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    let report = oracle.cell(&room, None);
+    for o in outside {
+        assert!(!report.visible.contains(o), "object {o} kept");
+    }
+    assert_eq!(report.sealed_hidden, 3, "{report:?}");
+    assert!(report.visible.contains(8), "the table is seen");
+    let counts = oracle.sealed_counts();
+    assert!(counts.voxels > 0 && counts.blocked > 0 && counts.components >= 2);
+    let tracer = Tracer::new(&scene);
+    let mut rng = Pcg64::seed_from_u64(42);
+    let cells = [
+        room,
+        // Into the east wall, the door and the floor.
+        Aabb::new(Vec3::new(5.0, 1.5, 0.5), Vec3::new(6.1, 3.5, 1.5)),
+        Aabb::new(Vec3::new(1.0, 1.0, -0.1), Vec3::new(2.0, 2.0, 0.5)),
+        // A hair inside the mitred corner, and one outside the room.
+        Aabb::new(Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.01, 0.01, 1.01)),
+        Aabb::new(Vec3::new(8.0, 1.0, 0.5), Vec3::new(9.0, 2.0, 1.5)),
+    ];
+    for cell in cells {
+        let found = violations(&oracle, &tracer, &cell, 200_000, &mut rng);
+        assert!(found.is_empty(), "{cell:?}: {found:?}");
+    }
+    // Without the door, nothing is sealed off.
+    let (open, outside) = walled_room(false);
+    let oracle = Oracle::new(&open, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    let report = oracle.cell(&room, None);
+    assert_eq!(report.sealed_hidden, 0);
+    assert!(report.visible.contains(outside[0]), "seen through the door");
+    let tracer = Tracer::new(&open);
+    let found = violations(&oracle, &tracer, &room, 200_000, &mut rng);
+    assert!(found.is_empty(), "{found:?}");
+}
+
+/// The duplex's rooms upstairs (stop 42): its walls, slabs, doors and
+/// windows are separate solids, mitred at the corners; sealed, a room
+/// keeps close to what rays from it see (7.1x before).
+#[test]
+fn the_duplex_rooms_are_sealed() {
+    let path = crate::shared_scenes().join("apartment_ifc_duplex/duplex_apartment.obj");
+    let scene = scene::load(&path).expect("the shared duplex loads");
+    let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    let tracer = Tracer::new(&scene);
+    let mut rng = Pcg64::seed_from_u64(42);
+    let cell = Aabb::new(Vec3::new(0.9, -15.1, 3.4), Vec3::new(3.9, -12.1, 5.4));
+    let report = oracle.cell(&cell, None);
+    let batch: Vec<Ray> = (0..100_000)
+        .map(|_| Ray::new(uniform_point(&mut rng, &cell), uniform_direction(&mut rng)))
+        .collect();
+    let mut seen = vis5d::bitset::ObjectSet::new(scene.objects().len());
+    for h in tracer.closest_hits(&batch).into_iter().flatten() {
+        seen.insert(h.object as usize);
+    }
+    assert!(seen.is_subset(&report.visible));
+    assert!(
+        report.visible.count() <= 2 * seen.count(),
+        "{} kept, {} seen",
+        report.visible.count(),
+        seen.count()
+    );
+    assert!(report.sealed_hidden >= 50, "{}", report.sealed_hidden);
+    let found = violations(&oracle, &tracer, &cell, 200_000, &mut rng);
+    assert!(found.is_empty(), "{found:?}");
+}
