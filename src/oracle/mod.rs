@@ -7,8 +7,11 @@
 //! *proved* hidden. Checked against the sampled sets of a `.v5d`, it
 //! exposes sampling misses.
 //!
-//! Per cell, for each of six planes around it (one per face, see
-//! `oracle_project.rs`):
+//! Per cell, first the free space (`oracle_sealed.rs`): the closed solids
+//! of the scene cut it into connected pieces over a grid, once per scene,
+//! and an object that no free path from the cell reaches (a room behind
+//! closed walls, doors and windows) is hidden. Then, for each of six
+//! planes around it (one per face, see `oracle_project.rs`):
 //!
 //! 1. **Occluder selection.** The scene's convex occluders
 //!    (`oracle_occluders.rs`) in front of the face are ranked by the solid
@@ -58,8 +61,8 @@
 //! rasteriser, the max pyramid), `oracle_slice.rs` (slices of solids, sec.
 //! 3.3), `oracle_patches.rs` (axis-aligned patches), `oracle_sweep.rs`
 //! (reprojection and the sweep), `oracle_gpu.rs` with `oracle_gpu.wgsl` (the GPU rasteriser),
-//! `oracle_raster.rs` (the GPU-or-CPU choice), `oracle_check.rs` (the
-//! cross-check).
+//! `oracle_raster.rs` (the GPU-or-CPU choice), `oracle_sealed.rs` (the
+//! free space), `oracle_check.rs` (the cross-check).
 #![cfg_attr(not(feature = "gpu"), doc = "\n\n[`GpuRasteriser`]: crate#features")]
 
 mod oracle_check;

@@ -102,6 +102,9 @@ struct Grid {
     /// Per object, the components whose voxels (grown by the pad) its
     /// surface meets, sorted.
     reach: Vec<Vec<u32>>,
+    /// Per solid, the objects with a point within the pad of it, found
+    /// when a cell first meets the solid.
+    near: Vec<std::sync::OnceLock<Vec<u32>>>,
     /// Twice the tracer's slack over the grid's box.
     pad: f64,
     /// A margin for the separating-axis tests.
@@ -202,6 +205,7 @@ impl Grid {
             dims,
             label: Vec::new(),
             reach: Vec::new(),
+            near: solids.iter().map(|_| std::sync::OnceLock::new()).collect(),
             pad,
             scale,
             components: 0,
@@ -433,7 +437,7 @@ impl Grid {
                 let inside = seam
                     .solids
                     .iter()
-                    .any(|&si| point_inside(&solids[si as usize], p));
+                    .any(|&si| point_inside(&solids[si as usize], p) == Some(true));
                 if !inside {
                     all_inside = false;
                     break;
@@ -580,12 +584,78 @@ impl Grid {
         // Short segments: whatever comes within two pads of the cell.
         keep_meeting(pmin - pad, pmax + pad, &mut keep);
         // Viewpoints inside a solid see only what lies within it.
-        for s in solids {
+        for (si, s) in solids.iter().enumerate() {
             if s.min.cmple(pmax).all() && s.max.cmpge(pmin).all() && self.meets(s, pmin, pmax) {
-                keep_meeting(s.min - pad, s.max + pad, &mut keep);
+                let near = self.near[si].get_or_init(|| self.near_objects(scene, s, hierarchy));
+                for &o in near {
+                    keep.insert(o as usize);
+                }
             }
         }
         keep
+    }
+
+    /// The objects with a point within the pad of a closed solid: whose
+    /// triangles (grown by the pad) meet a voxel holding a point of it,
+    /// one its surface meets (closed boxes) or one inside it. A ray from
+    /// a viewpoint inside the solid stays in it up to its first hit.
+    fn near_objects(&self, scene: &Scene, s: &SlicedSolid, hierarchy: &BoxTree) -> Vec<u32> {
+        let pad = DVec3::splat(self.pad);
+        let mut region: Vec<usize> = Vec::new();
+        for t in &s.triangles {
+            let (tmin, tmax) = tri_box(t);
+            let r = [0, 1, 2].map(|a| closed_range(&self.planes[a], tmin[a], tmax[a]));
+            for (v, ijk) in self.voxels(&r) {
+                let (a, b) = self.voxel_box(ijk);
+                if tri_meets_box(t, a, b, self.scale) {
+                    region.push(v);
+                }
+            }
+        }
+        region.sort_unstable();
+        region.dedup();
+        let r = [0, 1, 2].map(|a| closed_range(&self.planes[a], s.min[a], s.max[a]));
+        let mut inside = Vec::new();
+        for (v, ijk) in self.voxels(&r) {
+            if region.binary_search(&v).is_err() {
+                let (a, b) = self.voxel_box(ijk);
+                // Undecided counts as inside.
+                if point_inside(s, a + (b - a) * DVec3::new(0.5, OFF_Y, OFF_Z)) != Some(false) {
+                    inside.push(v);
+                }
+            }
+        }
+        region.extend(inside);
+        region.sort_unstable();
+        let (lo, hi) = (s.min - pad, s.max + pad);
+        let outward = Aabb::new(
+            lo.as_vec3().map(f32::next_down),
+            hi.as_vec3().map(f32::next_up),
+        );
+        let mut candidates = Vec::new();
+        hierarchy.overlapping(&outward, &mut candidates);
+        candidates.sort_unstable();
+        let mut near = Vec::new();
+        for o in candidates {
+            let meets = scene.object_triangles(o as usize).iter().any(|t| {
+                let t = t.map(|v| v.as_dvec3());
+                let (tmin, tmax) = tri_box(&t);
+                if !((tmin - pad).cmple(hi).all() && (tmax + pad).cmpge(lo).all()) {
+                    return false;
+                }
+                let r = [0, 1, 2]
+                    .map(|a| closed_range(&self.planes[a], tmin[a] - self.pad, tmax[a] + self.pad));
+                self.voxels(&r).any(|(v, ijk)| {
+                    let (a, b) = self.voxel_box(ijk);
+                    region.binary_search(&v).is_ok()
+                        && tri_meets_box(&t, a - pad, b + pad, self.scale)
+                })
+            });
+            if meets || o == s.object {
+                near.push(o);
+            }
+        }
+        near
     }
 
     /// Whether the closed box `[a, b]` may meet the closed solid: a
@@ -618,13 +688,13 @@ impl Grid {
 
 /// Whether a point is inside a solid, by the parity of the crossings of
 /// a line from it along +x (+y, then +z, where a crossing along the first
-/// is doubtful); false when none decides.
-fn point_inside(s: &SlicedSolid, p: DVec3) -> bool {
+/// is doubtful); `None` when none decides.
+fn point_inside(s: &SlicedSolid, p: DVec3) -> Option<bool> {
     if !(s.min.cmple(p).all() && s.max.cmpge(p).all()) {
-        return false;
+        return Some(false);
     }
     if s.open_bottom.is_some_and(|f| p.z <= f) {
-        return false;
+        return Some(false);
     }
     // The axis first, then the two others, as x, y, z.
     let swizzle = |v: DVec3, axis: usize| match axis {
@@ -654,9 +724,9 @@ fn point_inside(s: &SlicedSolid, p: DVec3) -> bool {
                 }
             }
         }
-        return odd;
+        return Some(odd);
     }
-    false
+    None
 }
 
 /// Chooses the grid's planes: the scene's box and the grid's, the floors
