@@ -973,6 +973,35 @@ fn a_room_of_separate_solids_is_sealed_by_its_door() {
         let found = violations(&oracle, &tracer, &cell, 200_000, &mut rng);
         assert!(found.is_empty(), "{cell:?}: {found:?}");
     }
+    // The command says what sealing did, and turns it off.
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.obj");
+    scene::write_obj_file(&scene, &[], &file).unwrap();
+    let cell = "0.5,0.5,0.5,5.5,5.5,2.5";
+    let run = |more: &[&str]| -> serde_json::Value {
+        let mut args = vec!["oracle", file.to_str().unwrap(), "--cell", cell, "--json"];
+        args.extend(more);
+        let out = vis5d(&args);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    assert_eq!(run(&[])["sealed_hidden"], 3);
+    assert_eq!(run(&["--seal-voxels", "0"])["sealed_hidden"], 0);
+    let out = vis5d(&["oracle", file.to_str().unwrap(), "--cell", cell]);
+    assert!(
+        text(&out.stdout).contains("sealed: 3 objects"),
+        "{}",
+        text(&out.stdout)
+    );
+    let out = vis5d(&[
+        "oracle",
+        file.to_str().unwrap(),
+        "--cell",
+        cell,
+        "--seal-voxels",
+        "-1",
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
     // Without the door, nothing is sealed off.
     let (open, outside) = walled_room(false);
     let oracle = Oracle::new(&open, OracleParams::default(), Rasteriser::cpu()).unwrap();
