@@ -107,6 +107,10 @@ struct Grid {
     planes: [Vec<f64>; 3],
     /// Voxels per axis.
     dims: [usize; 3],
+    /// Per axis, the coordinate of each voxel's row point: the middle
+    /// along x, fractions sqrt 2 - 1 and 1 / pi of the side along y and z
+    /// ([`Grid::inside_voxels`]).
+    samples: [Vec<f64>; 3],
     /// Per voxel (x fastest), its component or [`BLOCKED`].
     label: Vec<u32>,
     /// Per object, the components whose voxels (grown by the pad) its
@@ -210,9 +214,16 @@ impl Grid {
         let planes = choose_planes(solids, lo, hi, smin, smax, extent, budget);
         let dims = [0, 1, 2].map(|a| planes[a].len() - 1);
         let total = dims[0] * dims[1] * dims[2];
+        let samples = [(0, 0.5), (1, OFF_Y), (2, OFF_Z)].map(|(a, f)| {
+            planes[a]
+                .windows(2)
+                .map(|w| w[0] + f * (w[1] - w[0]))
+                .collect()
+        });
         let mut grid = Self {
             planes,
             dims,
+            samples,
             label: Vec::new(),
             reach: Vec::new(),
             near: solids.iter().map(|_| std::sync::OnceLock::new()).collect(),
@@ -265,19 +276,6 @@ impl Grid {
     /// inside it, by the parity of each row's line along x (rows the line
     /// cannot decide are left out); then [`Grid::block_seams`].
     fn blocked(&self, solids: &[SlicedSolid], total: usize) -> Vec<bool> {
-        // Each row's line runs through a point of the open rectangle of
-        // its voxels' y and z ranges; not the centre, which lies on the
-        // diagonal of every rectangular face whose corners are planes of
-        // the grid, but a point off every such diagonal. Any point of an
-        // open voxel that no surface of the solid meets tells whether the
-        // whole voxel is inside.
-        let centres = |a: usize, f: f64| -> Vec<f64> {
-            self.planes[a]
-                .windows(2)
-                .map(|w| w[0] + f * (w[1] - w[0]))
-                .collect()
-        };
-        let (xc, yc, zc) = (centres(0, 0.5), centres(1, OFF_Y), centres(2, OFF_Z));
         let mut blocked = vec![false; total];
         // The last solid whose surface meets each voxel, plus one.
         let mut touched = vec![0u32; total];
@@ -296,49 +294,68 @@ impl Grid {
                     }
                 }
             }
-            let rows_y = closed_centres(&yc, s.min.y, s.max.y);
-            let rows_z = closed_centres(&zc, s.min.z, s.max.z);
-            let ny = rows_y.len();
-            let rows = ny * rows_z.len();
-            if rows == 0 {
-                continue;
-            }
-            let mut crossings: Vec<Vec<f64>> = vec![Vec::new(); rows];
-            let mut doubtful = vec![false; rows];
-            for t in &s.triangles {
-                let (tmin, tmax) = tri_box(t);
-                let ry = closed_centres(&yc, tmin.y, tmax.y);
-                let rz = closed_centres(&zc, tmin.z, tmax.z);
-                for k in rz {
-                    for j in ry.clone() {
-                        let row = (j - rows_y.start) + ny * (k - rows_z.start);
-                        match crossing_x(t, yc[j], zc[k]) {
-                            Crossing::Miss => {}
-                            Crossing::Doubtful => doubtful[row] = true,
-                            Crossing::At(x) => crossings[row].push(x),
-                        }
-                    }
+            self.inside_voxels(s, |v, decided| {
+                if decided && touched[v] != stamp {
+                    blocked[v] = true;
                 }
-            }
-            for (row, xs) in crossings.iter_mut().enumerate() {
-                if doubtful[row] || xs.len() % 2 == 1 {
-                    continue;
-                }
-                xs.sort_by(f64::total_cmp);
-                let (j, k) = (rows_y.start + row % ny, rows_z.start + row / ny);
-                for pair in xs.chunks_exact(2) {
-                    let (a, b) = (pair[0], pair[1]);
-                    for i in closed_centres(&xc, a, b) {
-                        let v = self.index(i, j, k);
-                        if xc[i] > a && xc[i] < b && touched[v] != stamp {
-                            blocked[v] = true;
-                        }
+            });
+        }
+        self.block_seams(solids, &mut blocked);
+        blocked
+    }
+
+    /// Calls `each(v, true)` for every voxel of the solid's box whose row
+    /// point lies inside the solid by the parity of the row's line along
+    /// x, and `each(v, false)` for every voxel of a row the line cannot
+    /// decide (it passes near an edge, runs nearly parallel to a triangle,
+    /// or crosses an odd number of times). Each row's line runs through a
+    /// point of the open rectangle of its voxels' y and z ranges; not the
+    /// centre, which lies on the diagonal of every rectangular face whose
+    /// corners are planes of the grid, but a point off every such
+    /// diagonal. Any point of an open voxel that no surface of the solid
+    /// meets tells whether the whole voxel is inside.
+    fn inside_voxels(&self, s: &SlicedSolid, mut each: impl FnMut(usize, bool)) {
+        let [xc, yc, zc] = &self.samples;
+        let rows_y = closed_centres(yc, s.min.y, s.max.y);
+        let rows_z = closed_centres(zc, s.min.z, s.max.z);
+        let ny = rows_y.len();
+        let rows = ny * rows_z.len();
+        if rows == 0 {
+            return;
+        }
+        let mut crossings: Vec<Vec<f64>> = vec![Vec::new(); rows];
+        let mut doubtful = vec![false; rows];
+        for t in &s.triangles {
+            let (tmin, tmax) = tri_box(t);
+            for k in closed_centres(zc, tmin.z, tmax.z) {
+                for j in closed_centres(yc, tmin.y, tmax.y) {
+                    let row = (j - rows_y.start) + ny * (k - rows_z.start);
+                    match crossing_x(t, yc[j], zc[k]) {
+                        Crossing::Miss => {}
+                        Crossing::Doubtful => doubtful[row] = true,
+                        Crossing::At(x) => crossings[row].push(x),
                     }
                 }
             }
         }
-        self.block_seams(solids, &mut blocked);
-        blocked
+        for (row, xs) in crossings.iter_mut().enumerate() {
+            let (j, k) = (rows_y.start + row % ny, rows_z.start + row / ny);
+            if doubtful[row] || xs.len() % 2 == 1 {
+                for i in closed_centres(xc, s.min.x, s.max.x) {
+                    each(self.index(i, j, k), false);
+                }
+                continue;
+            }
+            xs.sort_by(f64::total_cmp);
+            for pair in xs.chunks_exact(2) {
+                let (a, b) = (pair[0], pair[1]);
+                for i in closed_centres(xc, a, b) {
+                    if xc[i] > a && xc[i] < b {
+                        each(self.index(i, j, k), true);
+                    }
+                }
+            }
+        }
     }
 
     /// Voxels that solids' surfaces meet in one plane only (two walls
@@ -638,19 +655,10 @@ impl Grid {
         }
         region.sort_unstable();
         region.dedup();
-        let r = [0, 1, 2].map(|a| closed_range(&self.planes[a], s.min[a], s.max[a]));
-        let mut inside = Vec::new();
-        for (v, ijk) in self.voxels(&r) {
-            if region.binary_search(&v).is_err() {
-                let (a, b) = self.voxel_box(ijk);
-                // Undecided counts as inside.
-                if point_inside(s, a + (b - a) * DVec3::new(0.5, OFF_Y, OFF_Z)) != Some(false) {
-                    inside.push(v);
-                }
-            }
-        }
-        region.extend(inside);
+        // Inside by parity, or undecided (counted as inside).
+        self.inside_voxels(s, |v, _| region.push(v));
         region.sort_unstable();
+        region.dedup();
         let (lo, hi) = (s.min - pad, s.max + pad);
         let outward = Aabb::new(
             lo.as_vec3().map(f32::next_down),
