@@ -58,13 +58,19 @@
 //! once per scene; a cell costs a look-up of the components its voxels
 //! belong to.
 //!
-//! A cell whose padded box reaches down to the floor of a floorless solid
-//! gets no proof here (a segment from below could enter through the open
-//! floor), nor does a cell whose tracer slack exceeds the grid's (far
-//! outside the scene). `tests/it/oracle.rs` keeps a review's
+//! Solids open at the bottom: a segment from above a floor never passes
+//! it into the solid (the solid lies above its floor), but one from below
+//! can, unseen; so a cell whose padded box reaches down to the highest
+//! floor gets no proof here. A floorless solid whose faces all lie in its
+//! floor (a flat polygon) has no inside and is left out (its height does
+//! not count), as is one whose floor the budget dropped from the grid's
+//! planes (its floor would cut voxels). The grid's box and the scene's
+//! are always planes, whatever the budget. A cell whose tracer slack
+//! exceeds the grid's (far outside the scene) gets no proof either. `tests/it/oracle.rs` keeps two reviews'
 //! counterexamples (a cell inside a raised shell open at the bottom, an
 //! attic under a bottomless roof, a slit of 2^-30 between two parts of a
-//! wall that a tolerance took for one plane).
+//! wall that a tolerance took for one plane, the grid's top planes
+//! dropped by a small budget).
 
 use std::ops::Range;
 
@@ -95,7 +101,8 @@ pub(crate) struct Sealed {
     budget: usize,
     /// Twice the tracer's slack over the grid's box.
     pad: f64,
-    /// The highest floor of a floorless solid (minus infinity when none).
+    /// The highest floor of a solid open at the bottom that has an inside
+    /// (minus infinity when none): cells reaching down to it get no proof.
     floor: f64,
     /// The grid, once built.
     grid: std::sync::OnceLock<Grid>,
@@ -116,6 +123,11 @@ struct Grid {
     /// Per object, the components whose voxels (grown by the pad) its
     /// surface meets, sorted.
     reach: Vec<Vec<u32>>,
+    /// Per solid, whether it blocks: not flat (a floorless solid whose
+    /// faces all lie in its floor has no inside), and its floor, if it is
+    /// open at the bottom, one of the grid's planes (no voxel straddles
+    /// it). The others are left out, as if they were not solids.
+    blocker: Vec<bool>,
     /// Per solid, the objects with a point within the pad of it, found
     /// when a cell first meets the solid.
     near: Vec<std::sync::OnceLock<Vec<u32>>>,
@@ -164,7 +176,7 @@ impl Sealed {
         let (_, _, pad) = grid_box(scene)?;
         let floor = solids
             .iter()
-            .filter_map(|s| s.open_bottom)
+            .filter_map(|s| s.open_bottom.filter(|&f| s.max.z > f))
             .fold(f64::NEG_INFINITY, f64::max);
         Some(Self {
             budget,
@@ -192,6 +204,10 @@ impl Sealed {
     ) -> Option<ObjectSet> {
         // The cell's slack bounds the rounding of its rays; the grid was
         // padded for slacks up to half its pad.
+        // A segment from below a floor can come up into its solid through
+        // it, unseen; cells above every floor need not care (and a city of
+        // floorless blocks on a terrain, its street cells below some
+        // block's floor, never builds the grid).
         if slack.is_nan() || 2.0 * slack > self.pad || cell.0.z - self.pad <= self.floor {
             return None;
         }
@@ -212,6 +228,14 @@ impl Grid {
         let (lo, hi, pad) = grid_box(scene).unwrap_or((smin, smax, 0.0));
         let scale = extent + lo.abs().max(hi.abs()).max_element();
         let planes = choose_planes(solids, lo, hi, smin, smax, extent, budget);
+        let blocker: Vec<bool> = solids
+            .iter()
+            .map(|s| {
+                s.open_bottom.is_none_or(|f| {
+                    s.max.z > f && planes[2].binary_search_by(|p| p.total_cmp(&f)).is_ok()
+                })
+            })
+            .collect();
         let dims = [0, 1, 2].map(|a| planes[a].len() - 1);
         let total = dims[0] * dims[1] * dims[2];
         let samples = [(0, 0.5), (1, OFF_Y), (2, OFF_Z)].map(|(a, f)| {
@@ -226,6 +250,7 @@ impl Grid {
             samples,
             label: Vec::new(),
             reach: Vec::new(),
+            blocker,
             near: solids.iter().map(|_| std::sync::OnceLock::new()).collect(),
             pad,
             scale,
@@ -280,6 +305,9 @@ impl Grid {
         // The last solid whose surface meets each voxel, plus one.
         let mut touched = vec![0u32; total];
         for (si, s) in solids.iter().enumerate() {
+            if !self.blocker[si] {
+                continue;
+            }
             let stamp = si as u32 + 1;
             for t in &s.triangles {
                 let (tmin, tmax) = tri_box(t);
@@ -378,6 +406,9 @@ impl Grid {
             |plane: &[DVec3; 3], t: &[DVec3; 3]| t.iter().all(|&p| orient(plane, p) == 0.0);
         let mut seams: std::collections::BTreeMap<usize, Seam> = Default::default();
         for (si, s) in solids.iter().enumerate() {
+            if !self.blocker[si] {
+                continue;
+            }
             for t in &s.triangles {
                 if (t[1] - t[0]).cross(t[2] - t[0]) == DVec3::ZERO {
                     continue;
@@ -580,7 +611,10 @@ impl Grid {
         let met: Vec<usize> = (0..solids.len())
             .filter(|&si| {
                 let s = &solids[si];
-                s.min.cmple(pmax).all() && s.max.cmpge(pmin).all() && self.meets(s, pmin, pmax)
+                self.blocker[si]
+                    && s.min.cmple(pmax).all()
+                    && s.max.cmpge(pmin).all()
+                    && self.meets(s, pmin, pmax)
             })
             .collect();
         // From inside a solid open at the bottom a ray can leave through
@@ -669,7 +703,14 @@ impl Grid {
         candidates.sort_unstable();
         let mut near = Vec::new();
         for o in candidates {
-            let meets = scene.object_triangles(o as usize).iter().any(|t| {
+            // A big object (a terrain) whose box meets the solid's is kept
+            // without looking at its triangles one by one.
+            let triangles = scene.object_triangles(o as usize);
+            if triangles.len() > 4096 {
+                near.push(o);
+                continue;
+            }
+            let meets = triangles.iter().any(|t| {
                 let t = t.map(|v| v.as_dvec3());
                 let (tmin, tmax) = tri_box(&t);
                 if !((tmin - pad).cmple(hi).all() && (tmax + pad).cmpge(lo).all()) {
@@ -785,16 +826,14 @@ fn choose_planes(
     extent: f64,
     budget: usize,
 ) -> [Vec<f64>; 3] {
-    // Per axis, (coordinate, weight); infinite weights are never dropped.
+    // Per axis, (coordinate, weight): the floors of solids open at the
+    // bottom first, then faces by their total area.
     let mut faces: [Vec<(f64, f64)>; 3] = Default::default();
-    for a in 0..3 {
-        for c in [lo[a], smin[a], smax[a], hi[a]] {
-            faces[a].push((c, f64::INFINITY));
-        }
-    }
     for s in solids {
-        if let Some(f) = s.open_bottom {
-            faces[2].push((f, f64::INFINITY));
+        if let Some(f) = s.open_bottom
+            && s.max.z > f
+        {
+            faces[2].push((f, f64::MAX));
         }
         for t in &s.triangles {
             for (a, axis) in faces.iter_mut().enumerate() {
@@ -811,25 +850,29 @@ fn choose_planes(
         faces[a].sort_by(|x, y| x.0.total_cmp(&y.0));
         for &(c, w) in &faces[a] {
             match ranked[a].last_mut() {
-                Some(last) if last.0 == c => last.1 += w,
+                Some(last) if last.0 == c => last.1 = (last.1 + w).min(f64::MAX),
                 _ => ranked[a].push((c, w)),
             }
         }
         ranked[a].sort_by(|x, y| y.1.total_cmp(&x.1).then(x.0.total_cmp(&y.0)));
     }
-    // Half the budget for the faces at most.
+    // Half the budget for the faces at most; the grid's box and the
+    // scene's are always planes (the outer shell of voxels holds no
+    // solid), whatever the budget. A floor dropped here leaves its solid
+    // out of the sealing (`Grid::blocker`).
     let mut keep = [0, 1, 2].map(|a| ranked[a].len());
-    let cells = |keep: &[usize; 3]| keep.iter().map(|&k| k.max(2) - 1).product::<usize>();
+    let cells = |keep: &[usize; 3]| keep.iter().map(|&k| k + 3).product::<usize>();
     while cells(&keep) > budget / 2 {
         let a = (0..3).max_by_key(|&a| (keep[a], a)).unwrap_or(0);
-        if keep[a] <= 4 {
+        if keep[a] == 0 {
             break;
         }
-        keep[a] = (keep[a] - (keep[a] / 16).max(1)).max(4);
+        keep[a] -= (keep[a] / 16).max(1);
     }
     let mut planes: [Vec<f64>; 3] = Default::default();
     for a in 0..3 {
         let mut p: Vec<f64> = ranked[a][..keep[a]].iter().map(|x| x.0).collect();
+        p.extend([lo[a], smin[a], smax[a], hi[a]]);
         p.sort_by(f64::total_cmp);
         p.dedup();
         planes[a] = p;

@@ -956,6 +956,21 @@ fn a_room_of_separate_solids_is_sealed_by_its_door() {
     }
     assert_eq!(report.sealed_hidden, 3, "{report:?}");
     assert!(report.visible.contains(8), "the table is seen");
+    // A flat polygon is no solid to seal with (it has no inside), and its
+    // height does not stop the proofs below it.
+    let (sealed, _) = walled_room(true);
+    let mut objects: Vec<Vec<[Vec3; 3]>> = (0..sealed.objects().len())
+        .map(|o| sealed.object_triangles(o).to_vec())
+        .collect();
+    objects.push(
+        quad_x(30.0, 1.0)
+            .into_iter()
+            .map(|t| t.map(|v| Vec3::new(v.y + 30.0, v.z, 10.0)))
+            .collect(),
+    );
+    let with_quad = scene_of(objects);
+    let quad = Oracle::new(&with_quad, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    assert_eq!(quad.cell(&room, None).sealed_hidden, 4);
     let counts = oracle.sealed_counts();
     assert!(counts.voxels > 0 && counts.blocked > 0 && counts.components >= 2);
     let tracer = Tracer::new(&scene);
@@ -1118,9 +1133,29 @@ fn review_counterexamples_to_sealing_stay_fixed() {
             p(f(0x35800000), f(0x3e4ccccd), 0.0),
         ),
     ));
+    // A second review: under a small budget the grid's top planes went
+    // first (ties among the planes never to drop were broken by height),
+    // so what stood above the grid's top was reached by nothing.
+    let mut raised: Vec<Vec<[Vec3; 3]>> = (0..12)
+        .map(|i| {
+            let (x, z) = (i as f32, 0.25 * i as f32);
+            floorless(p(x, 0.0, z), p(x + 0.5, 0.5, z + 0.25))
+        })
+        .collect();
+    raised.push(boxed(p(2.0, 3.0, 6.0), p(3.0, 4.0, 7.0)));
+    cases.push((
+        "floors and the grid's top dropped by a small budget",
+        scene_of(raised),
+        Aabb::new(p(0.0, 2.0, 4.0), p(1.0, 3.0, 4.5)),
+        Ray::new(p(0.5, 2.5, 4.25), p(2.0, 1.0, 2.25)),
+    ));
     let mut rng = Pcg64::seed_from_u64(42);
-    for (name, scene, cell, ray) in cases {
-        let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    for (k, (name, scene, cell, ray)) in cases.into_iter().enumerate() {
+        let params = OracleParams {
+            seal_voxels: if k == 3 { 1000 } else { 1 << 24 },
+            ..OracleParams::default()
+        };
+        let oracle = Oracle::new(&scene, params, Rasteriser::cpu()).unwrap();
         let tracer = Tracer::new(&scene);
         let hit = tracer.closest_hit(&ray).expect("the witness hits");
         let report = oracle.cell(&cell, None);
