@@ -66,11 +66,11 @@
 //! not count), as is one whose floor the budget dropped from the grid's
 //! planes (its floor would cut voxels). The grid's box and the scene's
 //! are always planes, whatever the budget. A cell whose tracer slack
-//! exceeds the grid's (far outside the scene) gets no proof either. `tests/it/oracle.rs` keeps two reviews'
-//! counterexamples (a cell inside a raised shell open at the bottom, an
-//! attic under a bottomless roof, a slit of 2^-30 between two parts of a
-//! wall that a tolerance took for one plane, the grid's top planes
-//! dropped by a small budget).
+//! exceeds the grid's (far outside the scene) gets no proof either.
+//! `tests/it/oracle.rs` keeps two reviews' counterexamples (a cell inside
+//! a raised shell open at the bottom, an attic under a bottomless roof, a
+//! slit of 2^-30 between two parts of a wall that a tolerance took for one
+//! plane, the grid's top planes dropped by a small budget).
 
 use std::ops::Range;
 
