@@ -237,6 +237,9 @@ impl BakeParams {
                 "oracle_placement_resolution={}",
                 oracle.placement_resolution
             ),
+            format!("oracle_shaft_budget={}", oracle.shaft_budget),
+            format!("oracle_shaft_depth={}", oracle.shaft_depth),
+            format!("oracle_seal_voxels={}", oracle.seal_voxels),
         ];
         lines.join("\n") + "\n"
     }
