@@ -202,12 +202,12 @@ impl Sealed {
         cell: (DVec3, DVec3),
         slack: f64,
     ) -> Option<ObjectSet> {
-        // The cell's slack bounds the rounding of its rays; the grid was
-        // padded for slacks up to half its pad.
-        // A segment from below a floor can come up into its solid through
-        // it, unseen; cells above every floor need not care (and a city of
-        // floorless blocks on a terrain, its street cells below some
-        // block's floor, never builds the grid).
+        // The cell's slack bounds the rounding of its rays, and the grid
+        // was padded for slacks up to half its pad. A segment from below a
+        // floor can come up into its solid through it, unseen, so only
+        // cells above every floor get a proof (and a city of floorless
+        // blocks on a terrain, its street cells below some block's floor,
+        // never builds the grid).
         if slack.is_nan() || 2.0 * slack > self.pad || cell.0.z - self.pad <= self.floor {
             return None;
         }
