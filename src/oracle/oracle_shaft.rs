@@ -64,6 +64,13 @@ pub const WITNESSES: usize = 16;
 /// across a city's terrain meets thousands of its triangles).
 const MET: usize = 64;
 
+/// The most shafts one portal's search may test (taken from the object's
+/// budget).
+const PORTAL_SHAFTS: usize = 8;
+/// A portal is followed when it holds at most this share of the area of
+/// the crossings' rectangle on its cut.
+const PORTAL_SHARE: f64 = 0.75;
+
 /// Where, across a solid's width along one of its face normals, its
 /// blocking planes lie (the middle first).
 const DEPTHS: [f64; 3] = [0.5, 0.15, 0.85];
@@ -166,16 +173,29 @@ impl Shafts {
         };
         let mut budget = search.budget;
         let mut hint = None;
-        self.shaft(search, object, clusters, cell, b, 0, &mut budget, &mut hint)
+        self.shaft(
+            search,
+            object,
+            clusters,
+            (cell, None),
+            b,
+            0,
+            &mut budget,
+            &mut hint,
+        )
     }
 
+    /// Whether every segment from the part `a.0` (of the cell, or a
+    /// portal every segment passes through) to the part `b` of the object
+    /// is blocked; `a.1` is the part of the cell those segments start from
+    /// when `a.0` is a portal.
     #[allow(clippy::too_many_arguments)]
     fn shaft(
         &self,
         search: &Search,
         object: u32,
         clusters: &[Cluster],
-        a: (DVec3, DVec3),
+        (a, from): ((DVec3, DVec3), Option<(DVec3, DVec3)>),
         b: Part,
         depth: usize,
         budget: &mut usize,
@@ -193,7 +213,7 @@ impl Shafts {
         if let Some(k) = *hint {
             let blocked = match k.checked_sub(search.occluders.len()) {
                 None => self.blocks(search, k, a, (bmin, bmax)),
-                Some(solid) => self.cuts_block(search, solid, a, (bmin, bmax)),
+                Some(solid) => self.cuts_block(search, solid, (a, from), (bmin, bmax)),
             };
             if blocked {
                 return true;
@@ -244,7 +264,8 @@ impl Shafts {
                 return false;
             }
             any = true;
-            let hit = Some(offset + k) != tried && self.cuts_block(search, k, a, (bmin, bmax));
+            let hit =
+                Some(offset + k) != tried && self.cuts_block(search, k, (a, from), (bmin, bmax));
             if hit {
                 solid_found = Some(offset + k);
             }
@@ -255,6 +276,30 @@ impl Shafts {
         }
         if !any || depth >= search.depth {
             return false;
+        }
+        // A solid that blocks the segments crossing its cut but for those
+        // through a hole (a door in a wall, the gap beside a box): the
+        // rest go on from the hole, a portal.
+        if let Some(portal) = self.portal(search, object, (a, from), (bmin, bmax), (p, q)) {
+            // Followed only a few shafts deep: a wall beyond the portal
+            // blocks it at once or nearly, and a failed portal is paid
+            // for out of the shafts that cutting would have used.
+            let mut sub = (*budget).min(PORTAL_SHAFTS);
+            let before = sub;
+            let ok = self.shaft(
+                search,
+                object,
+                clusters,
+                (portal, Some(from.unwrap_or(a))),
+                b,
+                depth + 1,
+                &mut sub,
+                hint,
+            );
+            *budget -= before - sub;
+            if ok {
+                return true;
+            }
         }
         // Cut the box and side that spread the crossings most: a side's
         // length times the sine of its angle to the shaft's axis.
@@ -276,7 +321,7 @@ impl Shafts {
                 search,
                 object,
                 clusters,
-                (a.0, lo),
+                ((a.0, lo), from),
                 b,
                 depth + 1,
                 budget,
@@ -285,7 +330,7 @@ impl Shafts {
                 search,
                 object,
                 clusters,
-                (hi, a.1),
+                ((hi, a.1), from),
                 b,
                 depth + 1,
                 budget,
@@ -323,25 +368,60 @@ impl Shafts {
                     ]
                 }
             };
-            halves
-                .iter()
-                .all(|&h| self.shaft(search, object, clusters, a, h, depth + 1, budget, hint))
+            halves.iter().all(|&h| {
+                self.shaft(
+                    search,
+                    object,
+                    clusters,
+                    (a, from),
+                    h,
+                    depth + 1,
+                    budget,
+                    hint,
+                )
+            })
         }
     }
 
     /// Whether a cut of sliceable solid `k` blocks every segment from box
-    /// `a` to box `b`: the plane separates them, the rectangle of the
-    /// crossings (of the 64 corner segments: the crossing coordinates are
-    /// monotone in each end's) lies inside the cut's loops by the slack
-    /// (no loop segment comes near it, its centre inside by the even-odd
-    /// rule), one end is apart from the solid, and, for a solid open at
-    /// the bottom, both boxes lie above its floor (a segment between
-    /// points above it cannot pass through the missing floor).
-    fn cuts_block(&self, search: &Search, k: usize, a: (DVec3, DVec3), b: (DVec3, DVec3)) -> bool {
+    /// `a.0` to box `b` (through box `a.1` first, when `a.0` is a portal):
+    /// the plane separates them, the rectangle of the crossings (of the 64
+    /// corner segments: the crossing coordinates are monotone in each
+    /// end's) lies inside the cut's loops by the slack (no loop segment
+    /// comes near it, its centre inside by the even-odd rule), one end is
+    /// apart from the solid, and, for a solid open at the bottom, both
+    /// boxes lie above its floor (a segment between points above it cannot
+    /// pass through the missing floor).
+    fn cuts_block(
+        &self,
+        search: &Search,
+        k: usize,
+        a: ((DVec3, DVec3), Option<(DVec3, DVec3)>),
+        b: (DVec3, DVec3),
+    ) -> bool {
+        if !self.may_block(search, k, a, b) {
+            return false;
+        }
+        self.cuts[k]
+            .iter()
+            .any(|cut| crossings(cut, a, b, search.slack).is_some_and(|rect| cut_blocks(cut, rect)))
+    }
+
+    /// What a cut of solid `k` needs besides its plane: one end (or the
+    /// portal) apart from the solid, and every part above the floor of a
+    /// solid open at the bottom.
+    fn may_block(
+        &self,
+        search: &Search,
+        k: usize,
+        (a, from): ((DVec3, DVec3), Option<(DVec3, DVec3)>),
+        b: (DVec3, DVec3),
+    ) -> bool {
         let solid = &search.solids[k];
         let slack = search.slack;
+        let parts = [Some(a), Some(b), from];
         if let Some(floor) = solid.open_bottom
-            && (a.0.z <= floor + slack || b.0.z <= floor + slack)
+            && parts.iter().flatten().any(|p| p.0.z <= floor + slack)
         {
             return false;
         }
@@ -349,10 +429,57 @@ impl Shafts {
         let apart = |(lo, hi): (DVec3, DVec3)| {
             hi.cmplt(solid.min - pad).any() || lo.cmpgt(solid.max + pad).any()
         };
-        if !apart(a) && !apart(b) {
-            return false;
-        }
-        self.cuts[k].iter().any(|cut| cut_holds(cut, a, b, slack))
+        parts.iter().flatten().any(|&p| apart(p))
+    }
+
+    /// The smallest portal a solid along the segment `p -> q` (between the
+    /// parts' centres) leaves: a flat box on one of its cuts holding every
+    /// crossing of a segment from `a` to `b` that the cut does not block,
+    /// when it is at most [`PORTAL_SHARE`] of the crossings' rectangle.
+    fn portal(
+        &self,
+        search: &Search,
+        object: u32,
+        a: ((DVec3, DVec3), Option<(DVec3, DVec3)>),
+        b: (DVec3, DVec3),
+        (p, q): (DVec3, DVec3),
+    ) -> Option<(DVec3, DVec3)> {
+        let mut best: Option<(f64, (DVec3, DVec3))> = None;
+        along_until(&self.solid_tree, p, q, &mut |k| {
+            let k = k as usize;
+            let Some(solid) = search.solids.get(k) else {
+                return false;
+            };
+            if solid.object == object
+                || (search.skip)(solid.object)
+                || !self.may_block(search, k, a, b)
+            {
+                return false;
+            }
+            for cut in &self.cuts[k] {
+                // The portal must lie strictly between the part and `b`.
+                if !separates(cut, a.0, b, search.slack) {
+                    continue;
+                }
+                let Some((lo, hi, grow)) = crossings(cut, a, b, search.slack) else {
+                    continue;
+                };
+                let Some((hlo, hhi)) = hole(cut, lo, hi, grow) else {
+                    continue;
+                };
+                let (whole, left) = ((hi - lo).element_product(), (hhi - hlo).element_product());
+                let share = if whole > 0.0 { left / whole } else { 1.0 };
+                if share <= PORTAL_SHARE && best.is_none_or(|(s, _)| share < s) {
+                    let (u, v) = ((cut.axis + 1) % 3, (cut.axis + 2) % 3);
+                    let (mut min, mut max) = (DVec3::ZERO, DVec3::ZERO);
+                    (min[cut.axis], max[cut.axis]) = (cut.at, cut.at);
+                    (min[u], min[v], max[u], max[v]) = (hlo.x, hlo.y, hhi.x, hhi.y);
+                    best = Some((share, (min, max)));
+                }
+            }
+            false
+        });
+        best.map(|(_, portal)| portal)
     }
 
     /// Whether occluder `k` blocks every segment from box `a` to box `b`.
@@ -542,35 +669,101 @@ fn meets(o: &Occluder, p: DVec3, q: DVec3) -> bool {
     sides.iter().all(|&s| s >= 0.0) || sides.iter().all(|&s| s <= 0.0)
 }
 
-/// Whether every segment from box `a` to box `b` crosses `cut`'s plane
-/// inside its loops (by `slack`).
-fn cut_holds(cut: &Cut, a: (DVec3, DVec3), b: (DVec3, DVec3), slack: f64) -> bool {
+/// The rectangle on `cut`'s plane (its `(u, v)`) holding every crossing of
+/// a segment from box `a.0` to box `b` (that passes through box `a.1` first,
+/// when given), and how far the tracer's rounding moves a crossing along
+/// the plane (the slack over the sine of the segment's angle to it);
+/// `None` when the plane does not separate the boxes. A rectangle with
+/// `lo > hi` on some axis holds no crossing: no segment passes through
+/// both `a.0` and `a.1`.
+fn crossings(
+    cut: &Cut,
+    (a, from): ((DVec3, DVec3), Option<(DVec3, DVec3)>),
+    b: (DVec3, DVec3),
+    slack: f64,
+) -> Option<(DVec2, DVec2, f64)> {
     let k = cut.axis;
     let (c, u, v) = (cut.at, (k + 1) % 3, (k + 2) % 3);
-    let separated =
-        (a.1[k] < c - slack && b.0[k] > c + slack) || (b.1[k] < c - slack && a.0[k] > c + slack);
-    if !separated {
-        return false;
-    }
-    let (ca, cb) = (corners(a.0, a.1), corners(b.0, b.1));
-    let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
-    for &p in &ca {
-        for &q in &cb {
-            let t = (c - p[k]) / (q[k] - p[k]);
-            let x = p + (q - p) * t;
-            let x = DVec2::new(x[u], x[v]);
-            lo = lo.min(x);
-            hi = hi.max(x);
-        }
-    }
-    // The tracer's rounding moves a ray's crossing along the plane by up to
-    // the slack over the sine of its angle to the plane.
+    let separated = |x: (DVec3, DVec3), y: (DVec3, DVec3)| separates(cut, x, y, slack);
     let mut n = DVec3::ZERO;
     n[k] = 1.0;
-    let grow = slack / min_sine(n, &ca, &cb);
-    let (lo, hi) = (lo - grow, hi + grow);
+    // Every segment crosses the plane once, inside the rectangle of each
+    // pair of boxes it passes through in turn on the plane's two sides
+    // (`a` and `b`, `a.1` and `b`, `a.1` and `a`); its direction lies in
+    // each pair's cone, so the larger of their smallest sines bounds its
+    // angle.
+    //
+    // And when `a` is a portal lying wholly between `a.1` and the plane
+    // (along its axis), a segment's line runs from a point `p` of `a.1`
+    // through one `h` of `a` on to the plane: its crossing `p + (h - p) t`
+    // (`t >= 1`) is linear in `h`'s and `p`'s coordinates across the axis
+    // and monotone in each along it, so the corners' crossings bound
+    // these too.
+    let mut rect: Option<(DVec2, DVec2)> = None;
+    let mut sine: f64 = 0.0;
+    let beyond = |from: (DVec3, DVec3)| {
+        (from.1[k] < a.0[k] && a.1[k] < c) || (from.0[k] > a.1[k] && a.0[k] > c)
+    };
+    let mut pairs = [(a, b); 4];
+    let mut count = 0;
+    if separated(a, b) {
+        count += 1;
+        if let Some(f) = from.filter(|&f| beyond(f)) {
+            pairs[count] = (f, a);
+            count += 1;
+        }
+    }
+    if let Some(f) = from {
+        if separated(f, b) {
+            pairs[count] = (f, b);
+            count += 1;
+        }
+        if separated(f, a) {
+            pairs[count] = (f, a);
+            count += 1;
+        }
+    }
+    for &(p0, q0) in &pairs[..count] {
+        let (ca, cb) = (corners(p0.0, p0.1), corners(q0.0, q0.1));
+        let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
+        for &p in &ca {
+            for &q in &cb {
+                let t = (c - p[k]) / (q[k] - p[k]);
+                let x = p + (q - p) * t;
+                let x = DVec2::new(x[u], x[v]);
+                lo = lo.min(x);
+                hi = hi.max(x);
+            }
+        }
+        rect = Some(match rect {
+            None => (lo, hi),
+            Some((l, h)) => (l.max(lo), h.min(hi)),
+        });
+        sine = sine.max(min_sine(n, &ca, &cb));
+    }
+    let (lo, hi) = rect?;
+    Some((lo, hi, slack / sine))
+}
+
+/// Whether `cut`'s plane has box `x` strictly on one side and box `y` on
+/// the other (by more than `slack`).
+fn separates(cut: &Cut, x: (DVec3, DVec3), y: (DVec3, DVec3), slack: f64) -> bool {
+    let (k, c) = (cut.axis, cut.at);
+    (x.1[k] < c - slack && y.0[k] > c + slack) || (y.1[k] < c - slack && x.0[k] > c + slack)
+}
+
+/// Whether `cut` blocks every segment whose crossing (before rounding)
+/// lies in `[lo, hi]`, the rounding moving it by up to `grow`.
+fn cut_blocks(cut: &Cut, (lo, hi, grow): (DVec2, DVec2, f64)) -> bool {
+    lo.cmpgt(hi).any() || rect_inside(cut, lo - grow, hi + grow) == Some(true)
+}
+
+/// Whether the rectangle `[lo, hi]` lies inside `cut`'s loops (`Some(true)`),
+/// outside them (`Some(false)`), or meets a loop segment (`None`).
+fn rect_inside(cut: &Cut, lo: DVec2, hi: DVec2) -> Option<bool> {
     if lo.cmplt(cut.lo).any() || hi.cmpgt(cut.hi).any() {
-        return false;
+        let apart = hi.cmplt(cut.lo).any() || lo.cmpgt(cut.hi).any();
+        return apart.then_some(false);
     }
     // No loop segment meets the rectangle.
     for &[p, q] in &cut.segments {
@@ -579,11 +772,15 @@ fn cut_holds(cut: &Cut, a: (DVec3, DVec3), b: (DVec3, DVec3), slack: f64) -> boo
             continue;
         }
         if segment_meets_rect(p, q, lo, hi) {
-            return false;
+            return None;
         }
     }
     // Wholly inside or wholly outside: the centre decides (even-odd).
-    let m = 0.5 * (lo + hi);
+    Some(inside_loops(cut, 0.5 * (lo + hi)))
+}
+
+/// Whether point `m` of `cut`'s plane lies inside its loops (even-odd).
+fn inside_loops(cut: &Cut, m: DVec2) -> bool {
     let mut inside = false;
     for &[p, q] in &cut.segments {
         if (p.y > m.y) != (q.y > m.y) {
@@ -594,6 +791,74 @@ fn cut_holds(cut: &Cut, a: (DVec3, DVec3), b: (DVec3, DVec3), slack: f64) -> boo
         }
     }
     inside
+}
+
+/// Where in the crossings' rectangle `[lo, hi]` a segment may pass `cut`
+/// unblocked, the rounding moving its crossing by up to `grow`: within
+/// `grow` of a loop segment (their pieces in the rectangle grown by
+/// `grow`) or outside the loops (a union of polygons whose corners are
+/// such pieces' ends or the rectangle's corners outside the loops), so the
+/// bounding rectangle of those pieces and corners, grown by `grow` and
+/// clipped to the rectangle. `None` when that is all of it, or nothing
+/// (the whole rectangle inside, which the callers' test finds first).
+fn hole(cut: &Cut, lo: DVec2, hi: DVec2, grow: f64) -> Option<(DVec2, DVec2)> {
+    if lo.cmpgt(hi).any() {
+        return None;
+    }
+    let (glo, ghi) = (lo - grow, hi + grow);
+    let (mut hlo, mut hhi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
+    for &[p, q] in &cut.segments {
+        if p.x.max(q.x) < glo.x
+            || p.x.min(q.x) > ghi.x
+            || p.y.max(q.y) < glo.y
+            || p.y.min(q.y) > ghi.y
+        {
+            continue;
+        }
+        if let Some((s, e)) = clip_to_rect(p, q, glo, ghi) {
+            hlo = hlo.min(s).min(e);
+            hhi = hhi.max(s).max(e);
+        }
+    }
+    for corner in [lo, DVec2::new(hi.x, lo.y), DVec2::new(lo.x, hi.y), hi] {
+        if !inside_loops(cut, corner) {
+            hlo = hlo.min(corner);
+            hhi = hhi.max(corner);
+        }
+    }
+    if hlo.cmpgt(hhi).any() {
+        return None;
+    }
+    let (hlo, hhi) = ((hlo - grow).max(lo), (hhi + grow).min(hi));
+    if hlo.cmpgt(hhi).any() {
+        return None;
+    }
+    (hlo != lo || hhi != hi).then_some((hlo, hhi))
+}
+
+/// The part of the segment `p -> q` inside the closed rectangle
+/// `[lo, hi]`, if any.
+fn clip_to_rect(p: DVec2, q: DVec2, lo: DVec2, hi: DVec2) -> Option<(DVec2, DVec2)> {
+    let d = q - p;
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for axis in 0..2 {
+        if d[axis] == 0.0 {
+            if p[axis] < lo[axis] || p[axis] > hi[axis] {
+                return None;
+            }
+            continue;
+        }
+        let (s, e) = (
+            (lo[axis] - p[axis]) / d[axis],
+            (hi[axis] - p[axis]) / d[axis],
+        );
+        t0 = t0.max(s.min(e));
+        t1 = t1.min(s.max(e));
+        if t0 > t1 {
+            return None;
+        }
+    }
+    Some((p + d * t0, p + d * t1))
 }
 
 /// Whether the segment `p -> q` meets the closed rectangle `[lo, hi]`.
@@ -1015,5 +1280,116 @@ mod tests {
         assert!(!shafts.hidden(&with_cuts, 1, &[], low, qmin, qmax));
         // Nor for the L itself.
         assert!(!shafts.hidden(&with_cuts, 0, &[], cell, qmin, qmax));
+    }
+
+    /// Two walls across x, each one solid of four boxes around a door
+    /// (1 x 1 m, the first at y in [0, 1], the second at y in `[door,
+    /// door + 1]`), and a box behind the second.
+    fn doors_scene(door: f32) -> crate::scene::Scene {
+        use crate::scene::procedural::shapes::push_box;
+        use crate::scene::{SceneBuilder, SceneFormat};
+        use glam::Vec3;
+        let mut b = SceneBuilder::new(SceneFormat::Procedural);
+        for (x, y) in [(2.0, 0.0), (4.0, door)] {
+            b.begin_object(format!("wall_{x}"));
+            let mut tris = Vec::new();
+            let (x0, x1) = (x, x + 0.2);
+            push_box(
+                &mut tris,
+                Vec3::new(x0, -10.0, -10.0),
+                Vec3::new(x1, y, 10.0),
+            );
+            push_box(
+                &mut tris,
+                Vec3::new(x0, y + 1.0, -10.0),
+                Vec3::new(x1, 10.0, 10.0),
+            );
+            push_box(
+                &mut tris,
+                Vec3::new(x0, y, -10.0),
+                Vec3::new(x1, y + 1.0, 0.0),
+            );
+            push_box(
+                &mut tris,
+                Vec3::new(x0, y, 1.0),
+                Vec3::new(x1, y + 1.0, 10.0),
+            );
+            for t in tris {
+                b.push_triangle(t).unwrap();
+            }
+        }
+        b.begin_object("box");
+        let mut tris = Vec::new();
+        push_box(
+            &mut tris,
+            Vec3::new(6.0, 2.0, 0.0),
+            Vec3::new(6.5, 5.0, 1.0),
+        );
+        for t in tris {
+            b.push_triangle(t).unwrap();
+        }
+        b.finish(std::path::Path::new("doors")).unwrap()
+    }
+
+    /// How many of 20,000 segments from the cell to object `object`'s
+    /// surface hit it first.
+    fn seen_by_segments(scene: &crate::scene::Scene, object: u32) -> usize {
+        use crate::trace::{Ray, Tracer};
+        let tracer = Tracer::new(scene);
+        let mut rng = Pcg64::seed_from_u64(5);
+        let rays: Vec<Ray> = (0..20_000)
+            .map(|_| {
+                let u = DVec3::new(rng.random(), rng.random(), rng.random());
+                let a = CELL.0 + (CELL.1 - CELL.0) * u;
+                Ray::segment(a.as_vec3(), scene.sample_surface(object as usize, &mut rng))
+            })
+            .collect();
+        tracer
+            .closest_hits(&rays)
+            .iter()
+            .filter(|h| h.is_some_and(|h| h.object == object))
+            .count()
+    }
+
+    #[test]
+    fn a_door_is_a_portal_to_the_wall_behind_it() {
+        use crate::oracle::oracle_occluders::extract;
+        // From the cell, a line through the first door is too flat to pass
+        // the second (slope dy/dx at most 1 against at least 1.1): the
+        // box is hidden by the two walls together, the first blocking
+        // what misses its door, the second what passes it.
+        let scene = doors_scene(3.0);
+        let found = extract(&scene);
+        assert_eq!(found.solids.len(), 3);
+        assert_eq!(seen_by_segments(&scene, 2), 0);
+        let (qmin, qmax) = (DVec3::new(6.0, 2.0, 0.0), DVec3::new(6.5, 5.0, 1.0));
+        let no = |_: u32| false;
+        let shafts = Shafts::new(&found.occluders, &found.solids);
+        let tight = Search {
+            solids: &found.solids,
+            budget: 64,
+            depth: 16,
+            ..search(&found.occluders, &no)
+        };
+        assert!(shafts.hidden(&tight, 2, &[], CELL, qmin, qmax));
+        // Either wall alone leaves segments open: neither hides it.
+        for w in 0..2 {
+            let one = |o: u32| o != w;
+            let alone = Search {
+                skip: &one,
+                ..tight
+            };
+            assert!(!shafts.hidden(&alone, 2, &[], CELL, qmin, qmax));
+        }
+        // The second door in line with the first: seen through both.
+        let scene = doors_scene(1.0);
+        let found = extract(&scene);
+        assert!(seen_by_segments(&scene, 2) > 0);
+        let shafts = Shafts::new(&found.occluders, &found.solids);
+        let open = Search {
+            solids: &found.solids,
+            ..search(&found.occluders, &no)
+        };
+        assert!(!shafts.hidden(&open, 2, &[], CELL, qmin, qmax));
     }
 }
