@@ -215,7 +215,7 @@ pub struct BuildArgs {
     /// With --conservative: the oracle's shafts, at most this many an
     /// object (`vis5d oracle --shaft-budget`): objects the maps did not
     /// hide tried one occluder at a time, the cell and the object cut in
-    /// halves [0 (off) to 1,000,000].
+    /// halves or passed on through a wall's door [0 (off) to 1,000,000].
     #[arg(long, requires = "conservative", default_value_t = 0,
           value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
     shaft_budget: u32,

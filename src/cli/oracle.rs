@@ -55,7 +55,8 @@ pub struct OracleFlags {
     /// Shafts: an object the maps did not hide is tried one occluder at a
     /// time (strong occlusion), the cell and the object's box cut in halves
     /// until every part is blocked by one convex occluder or one cut of a
-    /// closed (or floorless) solid; at most this many shafts an object [0
+    /// closed (or floorless) solid, or goes on through the one hole such
+    /// a cut leaves (a wall's door); at most this many shafts an object [0
     /// (off) to 1,000,000].
     #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
     pub shaft_budget: u32,
