@@ -778,9 +778,12 @@ fn separates(cut: &Cut, x: (DVec3, DVec3), y: (DVec3, DVec3), slack: f64) -> boo
 }
 
 /// Whether `cut` blocks every segment whose crossing (before rounding)
-/// lies in `[lo, hi]`, the rounding moving it by up to `grow`.
+/// lies in `[lo, hi]`, the rounding moving it by up to `grow`. A rectangle
+/// empty by more than the rounding holds no crossing (one empty by less
+/// could be an artefact of the corners' arithmetic, and is not trusted).
 fn cut_blocks(cut: &Cut, (lo, hi, grow): (DVec2, DVec2, f64)) -> bool {
-    lo.cmpgt(hi).any() || rect_inside(cut, lo - grow, hi + grow) == Some(true)
+    let (lo, hi) = (lo - grow, hi + grow);
+    lo.cmpgt(hi).any() || rect_inside(cut, lo, hi) == Some(true)
 }
 
 /// Whether the rectangle `[lo, hi]` lies inside `cut`'s loops (`Some(true)`),
