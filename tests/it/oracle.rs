@@ -766,9 +766,9 @@ fn shafts_hide_the_rooms_across_the_corridor() {
     let mut rng = Pcg64::seed_from_u64(29);
     let found = violations(&with, &tracer, &cell, 200_000, &mut rng);
     assert!(found.is_empty(), "{found:?}");
-    // Portals (stop 43): the room across the corridor beside the one
-    // facing this room's door is seen through the two doors at most at a
-    // slant; its desk is hidden, and the cell keeps at most twice what
+    // Portals (stop 43): the room diagonally across the corridor could be
+    // seen only through both doors, at a slant their positions do not
+    // allow; its desk is hidden, and the cell keeps at most twice what
     // 10^5 rays from it see (issue 13's target; 59 kept before portals).
     let across = scene
         .objects()
