@@ -799,7 +799,7 @@ fn rect_inside(cut: &Cut, lo: DVec2, hi: DVec2) -> Option<bool> {
         {
             continue;
         }
-        if segment_meets_rect(p, q, lo, hi) {
+        if clip_to_rect(p, q, lo, hi).is_some() {
             return None;
         }
     }
@@ -887,30 +887,6 @@ fn clip_to_rect(p: DVec2, q: DVec2, lo: DVec2, hi: DVec2) -> Option<(DVec2, DVec
         }
     }
     Some((p + d * t0, p + d * t1))
-}
-
-/// Whether the segment `p -> q` meets the closed rectangle `[lo, hi]`.
-fn segment_meets_rect(p: DVec2, q: DVec2, lo: DVec2, hi: DVec2) -> bool {
-    let d = q - p;
-    let (mut t0, mut t1) = (0.0f64, 1.0f64);
-    for axis in 0..2 {
-        if d[axis] == 0.0 {
-            if p[axis] < lo[axis] || p[axis] > hi[axis] {
-                return false;
-            }
-            continue;
-        }
-        let (s, e) = (
-            (lo[axis] - p[axis]) / d[axis],
-            (hi[axis] - p[axis]) / d[axis],
-        );
-        t0 = t0.max(s.min(e));
-        t1 = t1.min(s.max(e));
-        if t0 > t1 {
-            return false;
-        }
-    }
-    true
 }
 
 /// A sliceable solid's cuts: along each axis, at the middle and near both
