@@ -19,8 +19,8 @@ use vis5d::scene::procedural::{self, SceneKind};
 
 #[derive(Args, Debug)]
 pub struct SceneArgs {
-    /// What to generate: apartment, office, city, forest, machine or
-    /// thicket (or nothing, with `--tile`).
+    /// What to generate: apartment, office, city, forest, machine,
+    /// thicket or grove (or nothing, with `--tile`).
     #[arg(required_unless_present = "tile")]
     kind: Option<SceneKind>,
     /// Instead of a procedural scene, copy this model (.obj, .gltf or

@@ -17,12 +17,13 @@ fn header(kind: SceneKind, seed: u64, replicate: u32, s: &scene::Scene) -> Vec<S
 
 /// `scenes/<kind>.obj` is byte for byte `vis5d scene <kind> --seed 1`
 /// (scenes/README.md says so), and loads back to the generated scene. The
-/// thicket (110,604 triangles) is generated where needed, not committed.
+/// thicket (110,604 triangles) and the grove (about 78,000) are generated
+/// where needed, not committed.
 #[test]
 fn committed_scenes_are_reproducible() {
     for kind in SceneKind::ALL
         .into_iter()
-        .filter(|&k| k != SceneKind::Thicket)
+        .filter(|&k| !matches!(k, SceneKind::Thicket | SceneKind::Grove))
     {
         let s = generate(kind, 1, 1);
         let mut bytes = Vec::new();
@@ -99,6 +100,54 @@ fn the_machine_is_closed_but_for_its_grating() {
     }
     assert!(through > 0, "nothing inside is visible through the grating");
     assert!(through < n / 20, "{through} of {n} rays got inside");
+}
+
+/// The grove's crowns are opaque, which its truth rests on: segments from
+/// far outside a crown to points well inside it all hit something (a leaf
+/// of the crown, or a nearer object), though no two leaves share an edge;
+/// the thicket's crowns of random triangles let many through.
+#[test]
+fn the_groves_crowns_are_opaque() {
+    use glam::Vec3;
+    use rand::SeedableRng;
+    use rand_pcg::Pcg64;
+    use vis5d::random::uniform_direction;
+    use vis5d::trace::{Ray, Tracer};
+    let through = |kind: SceneKind, part: &str| {
+        let s = generate(kind, 1, 1);
+        let tracer = Tracer::new(&s);
+        let crowns: Vec<usize> = (0..s.objects().len())
+            .filter(|&i| s.objects()[i].name.ends_with(part))
+            .collect();
+        assert!(crowns.len() > 150, "{kind}: {} crowns", crowns.len());
+        let mut rng = Pcg64::seed_from_u64(7);
+        let mut through = 0;
+        for &c in crowns.iter().step_by(8) {
+            let b = s.objects()[c].bounds;
+            let (centre, half) = (b.center(), b.size() * 0.5);
+            for _ in 0..1000 {
+                // Inside the ellipsoid of the crown's box shrunk to 0.8,
+                // from 3 box half-diagonals away.
+                let q = loop {
+                    let q = Vec3::new(
+                        rand::RngExt::random_range(&mut rng, -1.0..1.0f32),
+                        rand::RngExt::random_range(&mut rng, -1.0..1.0f32),
+                        rand::RngExt::random_range(&mut rng, -1.0..1.0f32),
+                    );
+                    if q.length_squared() <= 1.0 {
+                        break centre + q * half * 0.8;
+                    }
+                };
+                let a = centre + uniform_direction(&mut rng) * 3.0 * half.length();
+                if tracer.closest_hit(&Ray::segment(a, q)).is_none() {
+                    through += 1;
+                }
+            }
+        }
+        through
+    };
+    assert_eq!(through(SceneKind::Grove, "/crown"), 0);
+    assert!(through(SceneKind::Thicket, "/leaves") > 1000);
 }
 
 /// `vis5d scene --tile`: a committed scene copied four times, read back

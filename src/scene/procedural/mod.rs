@@ -1,8 +1,8 @@
 //! Procedural test scenes, generated from a seed, whose visibility is easy
 //! to reason about: sealed rooms, streets, a forest, a machine behind a
-//! grating, a dense forest. They stand in for the test scenes of papers/003 sec. 8 (a
-//! 159-object two-room apartment, an 18-apartment block, a copy machine),
-//! which are not available.
+//! grating, two dense forests (crowns open and closed). They stand in for
+//! the test scenes of papers/003 sec. 8 (a 159-object two-room apartment,
+//! an 18-apartment block, a copy machine), which are not available.
 //!
 //! Units are metres, z is up, coordinates are rounded to the millimetre. The same kind, seed and replication give the
 //! same scene (and the same OBJ bytes) on every machine: all randomness
@@ -16,6 +16,7 @@
 mod apartment;
 mod city;
 mod forest;
+mod grove;
 mod machine;
 mod office;
 pub mod shapes;
@@ -50,17 +51,23 @@ pub enum SceneKind {
     /// A dense forest: trees 2.5 m apart with crowns of leaf triangles down
     /// to half a metre, where only many leaves together hide a tree.
     Thicket,
+    /// A dense forest whose crowns are closed shells of overlapping leaf
+    /// clusters, with a winding trail through it: trees a few rows from
+    /// the trail are really hidden, and only many leaves together hide
+    /// them.
+    Grove,
 }
 
 impl SceneKind {
     /// Every kind, in documentation order.
-    pub const ALL: [SceneKind; 6] = [
+    pub const ALL: [SceneKind; 7] = [
         SceneKind::Apartment,
         SceneKind::Office,
         SceneKind::City,
         SceneKind::Forest,
         SceneKind::Machine,
         SceneKind::Thicket,
+        SceneKind::Grove,
     ];
 
     /// The kind's name on the command line.
@@ -72,6 +79,7 @@ impl SceneKind {
             SceneKind::Forest => "forest",
             SceneKind::Machine => "machine",
             SceneKind::Thicket => "thicket",
+            SceneKind::Grove => "grove",
         }
     }
 
@@ -91,7 +99,7 @@ impl fmt::Display for SceneKind {
 /// A scene kind name that is not one of [`SceneKind::ALL`].
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error(
-    "unknown scene kind {0:?}: expected one of apartment, office, city, forest, machine, thicket"
+    "unknown scene kind {0:?}: expected one of apartment, office, city, forest, machine, thicket, grove"
 )]
 pub struct UnknownSceneKind(pub String);
 
@@ -138,6 +146,7 @@ pub fn generate(kind: SceneKind, seed: u64, replicate: u32) -> Scene {
         SceneKind::Forest => forest::generate(&mut rng),
         SceneKind::Machine => machine::generate(&mut rng),
         SceneKind::Thicket => thicket::generate(&mut rng),
+        SceneKind::Grove => grove::generate(&mut rng),
     };
     let copies = replicate.max(1);
     let offsets = copy_offsets(kind, model.bounds(), copies);
