@@ -58,7 +58,7 @@ use vis5d::shrink::{ShrinkOracle, ShrinkParams};
 use vis5d::slices::SlicedScene;
 use vis5d::trace::{Ray, Tracer};
 
-const USAGE: &str = "usage: street_cells MODEL CELLS SIZE [--height H] [--rooms] [--anywhere] [--rays N] [--aimed N] [--split K]\n  [--seed S] [--gpu] [--list] [--method extended|shrink|both] [--slices N]\n  [--sweep-planes N] [--sweep-patches N] [--sweep-extension X]\n  [--occludee-depth N] [--shaft-budget N] [--shaft-depth N] [--seal-voxels N]";
+const USAGE: &str = "usage: street_cells MODEL CELLS SIZE [--height H] [--rooms] [--anywhere] [--rays N] [--aimed N] [--split K]\n  [--seed S] [--gpu] [--list] [--method extended|shrink|both] [--slices N]\n  [--sweep-planes N] [--sweep-patches N] [--sweep-reach N] [--sweep-extension X]\n  [--occludee-depth N] [--shaft-budget N] [--shaft-depth N] [--seal-voxels N]";
 
 /// The command line.
 struct Args {
@@ -137,6 +137,11 @@ fn parse() -> Result<Args, String> {
                 args.params.sweep_patches = value("--sweep-patches")?
                     .parse()
                     .map_err(|_| "--sweep-patches must be a count")?
+            }
+            "--sweep-reach" => {
+                args.params.sweep_reach = value("--sweep-reach")?
+                    .parse()
+                    .map_err(|_| "--sweep-reach must be a count")?
             }
             "--sweep-extension" => {
                 args.params.sweep_extension = value("--sweep-extension")?

@@ -241,7 +241,14 @@ impl BakeParams {
             format!("oracle_shaft_depth={}", oracle.shaft_depth),
             format!("oracle_seal_voxels={}", oracle.seal_voxels),
         ];
-        lines.join("\n") + "\n"
+        // Settings added since: written only where they differ from what
+        // files without them were baked with, so that those keep their
+        // bytes.
+        let mut text = lines.join("\n") + "\n";
+        if oracle.sweep_reach != 1 {
+            text += &format!("oracle_sweep_reach={}\n", oracle.sweep_reach);
+        }
+        text
     }
 }
 

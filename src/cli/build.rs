@@ -212,6 +212,12 @@ pub struct BuildArgs {
     #[arg(long, requires = "conservative", default_value_t = 0,
           value_parser = clap::value_parser!(u8).range(0..=64))]
     sweep_patches: u8,
+    /// With --conservative: each sweep plane takes the reprojections of
+    /// this many planes before it, 1, 2, 4, ... back (`vis5d oracle
+    /// --sweep-reach`) [1 to 8].
+    #[arg(long, requires = "conservative", default_value_t = 1,
+          value_parser = clap::value_parser!(u8).range(1..=8))]
+    sweep_reach: u8,
     /// With --conservative: the oracle's shafts, at most this many an
     /// object (`vis5d oracle --shaft-budget`): objects the maps did not
     /// hide tried one occluder at a time, the cell and the object cut in
@@ -940,6 +946,7 @@ fn run_conservative(args: &BuildArgs) -> Result<()> {
     let oracle_params = OracleParams {
         sweep_planes: args.sweep_planes.into(),
         sweep_patches: args.sweep_patches.into(),
+        sweep_reach: args.sweep_reach.into(),
         shaft_budget: args.shaft_budget as usize,
         seal_voxels: args.seal_voxels as usize,
         ..OracleParams::default()

@@ -46,6 +46,15 @@ pub struct OracleFlags {
     /// 64].
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(0..=64))]
     pub sweep_patches: u8,
+    /// Occlusion sweep: each plane takes the reprojections of this many
+    /// planes before it, 1, 2, 4, ... planes back (1: the previous one).
+    /// Every reprojection loses up to a pixel at the edges of what it
+    /// carries; reaching back, an umbra carried through k planes loses
+    /// about log2(k) pixels instead of k. Pays with many sweep planes: a
+    /// dense forest's crowns fuse only through thin steps (`vis5d scene
+    /// grove`: `--sweep-planes 16 --sweep-reach 5`) [1 to 8].
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=8))]
+    pub sweep_reach: u8,
     /// Occludees below object level: an object not proved hidden whole is
     /// tried cluster by cluster, its triangles cut in halves this many
     /// levels deep, and is hidden when every cluster is (1: whole objects
@@ -89,6 +98,7 @@ impl OracleFlags {
             planes_per_face: self.planes_per_face.into(),
             sweep_planes: self.sweep_planes.into(),
             sweep_patches: self.sweep_patches.into(),
+            sweep_reach: self.sweep_reach.into(),
             occludee_depth: self.occludee_depth.into(),
             shaft_budget: self.shaft_budget as usize,
             shaft_depth: self.shaft_depth.into(),

@@ -38,8 +38,9 @@
 //!    largest axis-aligned patches in front of the face (`oracle_patches.rs`:
 //!    floors, slabs, walls, drawn whole with their holes) and spaced
 //!    geometrically away from it; each plane holds the previous one
-//!    reprojected (exactly, per pixel), the convex occluders between the
-//!    two, the cuts of solids and the patch in it. Objects the placed
+//!    reprojected (exactly, per pixel; with `sweep_reach`, the planes 2,
+//!    4, 8, ... back too), the convex occluders between the two, the cuts
+//!    of solids and the patch in it. Objects the placed
 //!    planes cannot hide are tried on the sweep planes next to them.
 //!
 //! An object is hidden when its box is hidden on one plane, or when its
@@ -157,6 +158,15 @@ pub struct OracleParams {
     /// How far each sweep plane's rectangle reaches beyond the cell's
     /// face, in multiples of its distance from the face.
     pub sweep_extension: f64,
+    /// Occlusion sweep: each plane takes the reprojections of this many
+    /// planes before it, 1, 2, 4, ... planes back (1: the previous one
+    /// only; at most 8). Each reprojection loses up to a pixel at the
+    /// edges of what it carries, so through a chain of k planes an umbra
+    /// shrinks by up to k pixels; with planes 2^j back it shrinks by about
+    /// log2(k). Worth it with many sweep planes (a forest's crowns fuse
+    /// only through thin steps), at one reprojection more per plane for
+    /// each step of reach.
+    pub sweep_reach: usize,
     /// Occludees below object level: an object not proved hidden whole is
     /// tried cluster by cluster, its triangles cut in halves this many
     /// levels deep (1: whole objects only; at most 16).
@@ -187,6 +197,7 @@ impl Default for OracleParams {
             sweep_planes: 4,
             sweep_patches: 4,
             sweep_extension: 1.5,
+            sweep_reach: 1,
             occludee_depth: 6,
             shaft_budget: 512,
             shaft_depth: 16,
@@ -246,6 +257,9 @@ impl OracleParams {
         }
         if self.seal_voxels > 1 << 28 {
             return Err(bad("seal_voxels", "at most 268435456", &self.seal_voxels));
+        }
+        if !(1..=8).contains(&self.sweep_reach) {
+            return Err(bad("sweep_reach", "in 1..=8", &self.sweep_reach));
         }
         if !(1..=16).contains(&self.occludee_depth) {
             return Err(bad("occludee_depth", "in 1..=16", &self.occludee_depth));
@@ -1227,7 +1241,17 @@ impl<'a> Oracle<'a> {
             if let Some(i) = step.patch {
                 oracle_patches::draw_patch(&mut level0, n, rect.0, rect.1, &self.patches[i]);
             }
-            if let Some(prev) = planes.last().filter(|p| p.map.filled() > 0) {
+            // The planes 1, 2, 4, ... back (`sweep_reach` of them),
+            // reprojected: each is a bound of its own (a segment from the
+            // cell to this plane crosses every earlier plane in its
+            // window), so the smallest Depth of them all is one too.
+            for back in (0..self.params.sweep_reach).map(|k| 1 << k) {
+                let Some(prev) = planes.len().checked_sub(back).map(|i| &planes[i]) else {
+                    break;
+                };
+                if prev.map.filled() == 0 {
+                    continue;
+                }
                 let carried =
                     oracle_sweep::reproject(&prev.map, prev.wp, lmin, lmax, wp, rect.0, rect.1, n);
                 for (d, c) in level0.iter_mut().zip(carried) {

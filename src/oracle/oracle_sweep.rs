@@ -22,6 +22,17 @@
 //! monotonically along each axis, so the map is two passes of sliding
 //! window maxima, O(n^2) per plane.
 //!
+//! **Reaching back** (`OracleParams::sweep_reach`). A reprojection loses
+//! up to a pixel at the edges of what it carries, since each target pixel
+//! is covered only where its whole window is: through a chain of k planes,
+//! an umbra shrinks by up to k pixels, so more, thinner steps (which a
+//! forest's leaves need to fuse) lose more. A plane may also take the
+//! reprojections of the planes 2, 4, 8, ... back, each its own bound by
+//! the same argument (a segment from the cell to the plane crosses every
+//! earlier plane, in its window there), keeping the smallest Depth: what
+//! an early plane proves then reaches a late one through about log2(k)
+//! reprojections.
+//!
 //! Why a reprojected map is conservative: a source pixel's Depth `d` means
 //! that every segment from a cell point to a point of the pixel meets an
 //! occluder at `w <= wa + d` (true of occluders, slices and patches, and,
