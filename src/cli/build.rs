@@ -214,7 +214,8 @@ pub struct BuildArgs {
     sweep_patches: u8,
     /// With --conservative: each sweep plane takes the reprojections of
     /// this many planes before it, 1, 2, 4, ... back (`vis5d oracle
-    /// --sweep-reach`) [1 to 8].
+    /// --sweep-reach`, whose default is 3; the bake's sweep is off by
+    /// default, and with it the reach stays 1 unless asked) [1 to 8].
     #[arg(long, requires = "conservative", default_value_t = 1,
           value_parser = clap::value_parser!(u8).range(1..=8))]
     sweep_reach: u8,

@@ -50,10 +50,11 @@ pub struct OracleFlags {
     /// planes before it, 1, 2, 4, ... planes back (1: the previous one).
     /// Every reprojection loses up to a pixel at the edges of what it
     /// carries; reaching back, an umbra carried through k planes loses
-    /// about log2(k) pixels instead of k. Pays with many sweep planes: a
-    /// dense forest's crowns fuse only through thin steps (`vis5d scene
-    /// grove`: `--sweep-planes 16 --sweep-reach 5`) [1 to 8].
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=8))]
+    /// about log2(k) pixels instead of k. The default reaches over a
+    /// default sweep; more pays with many sweep planes: a dense forest's
+    /// crowns fuse only through thin steps (`vis5d scene grove`:
+    /// `--sweep-planes 16 --sweep-reach 5`) [1 to 8].
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=8))]
     pub sweep_reach: u8,
     /// Occludees below object level: an object not proved hidden whole is
     /// tried cluster by cluster, its triangles cut in halves this many

@@ -163,9 +163,11 @@ pub struct OracleParams {
     /// only; at most 8). Each reprojection loses up to a pixel at the
     /// edges of what it carries, so through a chain of k planes an umbra
     /// shrinks by up to k pixels; with planes 2^j back it shrinks by about
-    /// log2(k). Worth it with many sweep planes (a forest's crowns fuse
-    /// only through thin steps), at one reprojection more per plane for
-    /// each step of reach.
+    /// log2(k). The default, 3, reaches over a default sweep's planes
+    /// (San Francisco's hillsides behind blocks, culled in slices); more
+    /// pays with many sweep planes (a forest's crowns fuse only through
+    /// thin steps), at one reprojection more per plane for each step of
+    /// reach.
     pub sweep_reach: usize,
     /// Occludees below object level: an object not proved hidden whole is
     /// tried cluster by cluster, its triangles cut in halves this many
@@ -197,7 +199,7 @@ impl Default for OracleParams {
             sweep_planes: 4,
             sweep_patches: 4,
             sweep_extension: 1.5,
-            sweep_reach: 1,
+            sweep_reach: 3,
             occludee_depth: 6,
             shaft_budget: 512,
             shaft_depth: 16,

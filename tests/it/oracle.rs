@@ -1196,9 +1196,12 @@ fn review_counterexamples_to_sealing_stay_fixed() {
 /// closed shells of separate leaf triangles, a small cell on the trail
 /// sees few trees, and the leaves fuse only through many thin sweep
 /// steps. Each plane also taking the reprojections of the planes 2, 4, 8
-/// and 16 back proves more hidden than the chain alone (a superset, since
-/// every map covers at least what it did), and rays, random and aimed at
-/// every hidden object, agree.
+/// and 16 back proves more hidden than the chain alone, and rays, random
+/// and aimed at every hidden object, agree. Here it hides a superset of
+/// what the chain hides, as on every cell measured; that is not certain
+/// in general (a plane the chain leaves empty, and skips, then holds
+/// reprojections, which shifts which planes are 1, 2, 4, ... back and
+/// which two planes an object is tested on).
 #[test]
 fn the_sweep_reaching_back_fuses_the_groves_crowns() {
     use vis5d::scene::procedural::{SceneKind, generate};
