@@ -2,10 +2,11 @@
 # The oracle's tightness against rays (issue 13's "tight" target): street
 # cells of the cities, room cells of the buildings, cells among the trees of
 # two dense forests (the thicket's crowns of random leaves, the grove's
-# closed crowns of overlapping leaves), each with the sweep off and on. Prints one line per run:
-# the scene, the sweep setting and examples/street_cells' means (objects
-# kept, seen by 10^5 rays, their ratio, the share of the objects no ray hit
-# that the oracle proved hidden, ms per cell on the CPU).
+# closed crowns of overlapping leaves), each with the sweep off and on.
+# Prints one line per run: the scene, the sweep setting and
+# examples/street_cells' means (objects kept, seen by 10^5 rays, their
+# ratio, the share of the objects no ray hit that the oracle proved hidden,
+# ms per cell on the CPU).
 #
 #   scripts/oracle-tightness.sh [CELLS [SWEEP...]]
 #

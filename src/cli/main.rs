@@ -159,8 +159,9 @@ enum Command {
     /// ventilation grating and many internal parts), thicket (a dense
     /// forest: 256 trees 2.5 m apart, crowns of leaf triangles down to half
     /// a metre), grove (a dense forest with a trail through it, whose
-    /// crowns are closed shells of overlapping leaf clusters). The same kind, seed and replication always give the same
-    /// file. `--tile MODEL --replicate N` instead copies a model N times
+    /// crowns are closed shells of overlapping leaf triangles). The same
+    /// kind, seed and replication always give the same file. `--tile
+    /// MODEL --replicate N` instead copies a model N times
     /// side by side on the ground: a bigger world made of a real one.
     Scene(scene::SceneArgs),
     /// Time the project's ray tracer: rays per second on random rays or
