@@ -1243,17 +1243,15 @@ impl<'a> Oracle<'a> {
             if let Some(i) = step.patch {
                 oracle_patches::draw_patch(&mut level0, n, rect.0, rect.1, &self.patches[i]);
             }
-            // The planes 1, 2, 4, ... back (`sweep_reach` of them),
-            // reprojected: each is a bound of its own (a segment from the
-            // cell to this plane crosses every earlier plane in its
-            // window), so the smallest Depth of them all is one too.
+            // The planes 1, 2, 4, ... back (`sweep_reach` of them; only
+            // planes with something on them are kept, below), reprojected:
+            // each is a bound of its own (a segment from the cell to this
+            // plane crosses every earlier plane in its window), so the
+            // smallest Depth of them all is one too.
             for back in (0..self.params.sweep_reach).map(|k| 1 << k) {
                 let Some(prev) = planes.len().checked_sub(back).map(|i| &planes[i]) else {
                     break;
                 };
-                if prev.map.filled() == 0 {
-                    continue;
-                }
                 let carried =
                     oracle_sweep::reproject(&prev.map, prev.wp, lmin, lmax, wp, rect.0, rect.1, n);
                 for (d, c) in level0.iter_mut().zip(carried) {
