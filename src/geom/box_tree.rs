@@ -5,7 +5,8 @@
 //!
 //! Built top-down: a node's objects are split at the median of their box
 //! centres along the axis where the centres spread most (ties by object
-//! index), down to one object per leaf. Deterministic: the same boxes give
+//! index), down to one object per leaf ([`BoxTree::for_segments`] splits
+//! by the surface area heuristic instead, for walks along segments). Deterministic: the same boxes give
 //! the same tree. Empty boxes ([`Aabb::is_empty`]: objects without
 //! triangles) are left out: they overlap nothing, are never marked, and
 //! their centres (infinite sums) would not sort.
@@ -59,6 +60,24 @@ impl BoxTree {
         let mut nodes = Vec::with_capacity(2 * ids.len());
         if !ids.is_empty() {
             build(boxes, &mut nodes, &mut ids);
+        }
+        Self { nodes }
+    }
+
+    /// The hierarchy over `boxes` for walks along segments: each node's
+    /// objects split where the surface area heuristic puts the cut (16
+    /// bins of box centres per axis; at the median deeper than 48 levels or
+    /// where all centres share a bin), so that a segment meets fewer
+    /// boxes than in [`BoxTree::new`]'s median splits where objects of
+    /// very different sizes mix (a city's buildings among its terrain's
+    /// polygons). Deterministic, and the empty boxes left out, likewise.
+    pub fn for_segments(boxes: &[Aabb]) -> Self {
+        let mut ids: Vec<u32> = (0..boxes.len() as u32)
+            .filter(|&i| !boxes[i as usize].is_empty())
+            .collect();
+        let mut nodes = Vec::with_capacity(2 * ids.len());
+        if !ids.is_empty() {
+            build_sah(boxes, &mut nodes, &mut ids, 0);
         }
         Self { nodes }
     }
@@ -189,7 +208,20 @@ fn build(boxes: &[Aabb], nodes: &mut Vec<BoxNode>, ids: &mut [u32]) -> u32 {
         children: [0, 0],
     });
     let centres = Aabb::from_points(ids.iter().map(|&o| boxes[o as usize].center()));
-    let axis = centres.size().max_position();
+    let mid = split_at_median(boxes, ids, centres.size().max_position());
+    let (left, right) = ids.split_at_mut(mid);
+    let l = build(boxes, nodes, left);
+    let r = build(boxes, nodes, right);
+    nodes[me as usize] = BoxNode::Inner {
+        bounds,
+        children: [l, r],
+    };
+    me
+}
+
+/// Puts the half of `ids` whose box centres are lowest along `axis` (ties
+/// by object index) first; returns where the other half starts.
+fn split_at_median(boxes: &[Aabb], ids: &mut [u32], axis: usize) -> usize {
     let mid = ids.len() / 2;
     ids.select_nth_unstable_by(mid, |&a, &b| {
         let (ca, cb) = (
@@ -198,9 +230,95 @@ fn build(boxes: &[Aabb], nodes: &mut Vec<BoxNode>, ids: &mut [u32]) -> u32 {
         );
         ca.total_cmp(&cb).then(a.cmp(&b))
     });
+    mid
+}
+
+/// Below this depth [`BoxTree::for_segments`] splits at the median, so
+/// that no tree is deeper than it plus `log2` of its objects.
+const SAH_DEPTH: usize = 48;
+
+/// Half the surface area of `b`.
+fn half_area(b: &Aabb) -> f32 {
+    let s = b.size();
+    s.x * s.y + s.y * s.z + s.z * s.x
+}
+
+/// Builds the subtree over `ids` at the end of `nodes` by the surface
+/// area heuristic; returns its index.
+fn build_sah(boxes: &[Aabb], nodes: &mut Vec<BoxNode>, ids: &mut [u32], depth: usize) -> u32 {
+    const BINS: usize = 16;
+    let bounds = ids
+        .iter()
+        .fold(Aabb::EMPTY, |b, &o| b.union(&boxes[o as usize]));
+    let me = nodes.len() as u32;
+    if let [object] = *ids {
+        nodes.push(BoxNode::Object { bounds, object });
+        return me;
+    }
+    nodes.push(BoxNode::Inner {
+        bounds,
+        children: [0, 0],
+    });
+    let centres = Aabb::from_points(ids.iter().map(|&o| boxes[o as usize].center()));
+    let (lo, size) = (centres.min, centres.size());
+    let bin = |o: u32, axis: usize| {
+        let t = (boxes[o as usize].center()[axis] - lo[axis]) / size[axis];
+        ((t * BINS as f32) as usize).min(BINS - 1)
+    };
+    // The cheapest cut: after bin `i` along `axis`, by the areas of the
+    // two sides' boxes times their counts.
+    let mut best: Option<(f32, usize, usize)> = None;
+    if depth < SAH_DEPTH {
+        for axis in 0..3 {
+            if size[axis] <= 0.0 || !size[axis].is_finite() {
+                continue;
+            }
+            let mut counts = [0usize; BINS];
+            let mut bins = [Aabb::EMPTY; BINS];
+            for &o in ids.iter() {
+                let k = bin(o, axis);
+                counts[k] += 1;
+                bins[k] = bins[k].union(&boxes[o as usize]);
+            }
+            let mut right = [0.0f32; BINS];
+            let (mut r, mut n) = (Aabb::EMPTY, 0);
+            for k in (1..BINS).rev() {
+                r = r.union(&bins[k]);
+                n += counts[k];
+                right[k] = if n == 0 {
+                    f32::NAN
+                } else {
+                    half_area(&r) * n as f32
+                };
+            }
+            let (mut l, mut n) = (Aabb::EMPTY, 0);
+            for k in 0..BINS - 1 {
+                l = l.union(&bins[k]);
+                n += counts[k];
+                let cost = half_area(&l) * n as f32 + right[k + 1];
+                if n > 0 && cost.is_finite() && best.is_none_or(|(c, _, _)| cost < c) {
+                    best = Some((cost, axis, k));
+                }
+            }
+        }
+    }
+    let mid = match best {
+        Some((_, axis, k)) => {
+            // Those in bins up to `k` first, in their order.
+            let mut mid = 0;
+            for i in 0..ids.len() {
+                if bin(ids[i], axis) <= k {
+                    ids.swap(i, mid);
+                    mid += 1;
+                }
+            }
+            mid
+        }
+        None => split_at_median(boxes, ids, size.max_position()),
+    };
     let (left, right) = ids.split_at_mut(mid);
-    let l = build(boxes, nodes, left);
-    let r = build(boxes, nodes, right);
+    let l = build_sah(boxes, nodes, left, depth + 1);
+    let r = build_sah(boxes, nodes, right, depth + 1);
     nodes[me as usize] = BoxNode::Inner {
         bounds,
         children: [l, r],
@@ -230,6 +348,38 @@ mod tests {
             t.validate(&b).unwrap();
             assert_eq!(t.nodes().len(), (2 * n).saturating_sub(1));
         }
+    }
+
+    #[test]
+    fn the_segments_tree_holds_every_object_once_and_stays_shallow() {
+        for n in [0, 1, 2, 3, 17, 100, 1000] {
+            let b = boxes(n);
+            let t = BoxTree::for_segments(&b);
+            t.validate(&b).unwrap();
+            assert_eq!(t.nodes().len(), (2 * n).saturating_sub(1));
+        }
+        // Boxes whose centres crowd at one end (each twice as far as the
+        // last from the origin) would make a surface-area split peel one
+        // off at a time: the median takes over, so the depth stays bounded.
+        let b: Vec<Aabb> = (0..400)
+            .map(|i| {
+                let c = Vec3::splat(1.02f32.powi(i));
+                Aabb::new(c, c + Vec3::splat(0.01))
+            })
+            .collect();
+        let t = BoxTree::for_segments(&b);
+        t.validate(&b).unwrap();
+        let mut deepest = 0;
+        let mut stack = vec![(0u32, 0usize)];
+        while let Some((k, d)) = stack.pop() {
+            deepest = deepest.max(d);
+            if let BoxNode::Inner { children, .. } = t.nodes()[k as usize] {
+                stack.extend(children.map(|c| (c, d + 1)));
+            }
+        }
+        assert!(deepest <= SAH_DEPTH + 10, "{deepest}");
+        // The same boxes give the same tree.
+        assert_eq!(t.nodes(), BoxTree::for_segments(&b).nodes());
     }
 
     #[test]
