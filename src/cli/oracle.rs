@@ -488,11 +488,12 @@ pub fn run(args: &OracleArgs) -> Result<()> {
     let c = oracle.occluder_counts();
     writeln!(
         out,
-        "{}: {} objects, {} occluders ({} convex solids, {} polygons, {} triangles), {} objects to slice",
+        "{}: {} objects, {} occluders ({} convex solids, {} convex shells, {} polygons, {} triangles), {} objects to slice",
         json.common.scene,
         json.common.objects,
         json.common.occluders,
         c.solids,
+        c.shells,
         c.polygons,
         c.triangles,
         oracle.solid_count()

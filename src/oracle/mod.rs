@@ -106,7 +106,7 @@ pub(crate) fn tracer_slack(scene: &Scene, cmin: DVec3, cmax: DVec3) -> f64 {
 /// The objects that can be sliced (closed, or open only at the bottom),
 /// for the shrinking oracle ([`crate::shrink`]).
 pub(crate) fn sliced_solids(scene: &Scene) -> Vec<SlicedSolid> {
-    oracle_occluders::extract(scene).solids
+    oracle_occluders::extract_with(scene, false).solids
 }
 
 use std::time::{Duration, Instant};
@@ -576,7 +576,7 @@ impl<'a> Oracle<'a> {
         // The part of the cell inside closed convex solids sees only what
         // lies within them: project from the rest, keep what meets them.
         let start = Instant::now();
-        let parent_hid = |o: &Occluder| hidden.contains(o.object as usize);
+        let parent_hid = |o: &Occluder| hidden.contains(o.object as usize) || !o.usable(slack);
         let (cmin, cmax, inside, whole_inside) =
             match oracle_inside::reduce(&self.occluders, cmin, cmax, slack, &parent_hid) {
                 oracle_inside::Reduced::Cell { min, max, solids } => (min, max, solids, false),
@@ -760,7 +760,6 @@ impl<'a> Oracle<'a> {
         let skip_parent = |object: u32| parent_hidden.is_some_and(|h| h.contains(object as usize));
         let shaft_search = oracle_shaft::Search {
             occluders: &self.occluders,
-            solids: &self.solids,
             skip: &skip_parent,
             slack,
             budget: self.params.shaft_budget,
@@ -904,7 +903,9 @@ impl<'a> Oracle<'a> {
         let (lmin, lmax) = frame.local_box(cmin, cmax);
         let centre = 0.5 * (lmin + lmax);
         let slack = self.slack(cmin, cmax);
-        let skip = |o: &Occluder| parent_hidden.is_some_and(|h| h.contains(o.object as usize));
+        let skip = |o: &Occluder| {
+            parent_hidden.is_some_and(|h| h.contains(o.object as usize)) || !o.usable(slack)
+        };
         // Candidates: occluders starting strictly in front of the face,
         // ranked by the area of their view from the centre on the plane
         // one unit in front of it (a solid-angle measure).

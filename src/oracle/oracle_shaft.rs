@@ -118,11 +118,138 @@ struct Blocker {
 
 /// The shaft tests' view of the occluders, built once per scene.
 pub struct Shafts {
+    /// Per occluder (those given to [`Shafts::new`], which each search
+    /// must hold in the same order: solids' hints count on from them).
     blockers: Vec<Blocker>,
-    tree: BoxTree,
-    /// Per sliceable solid, its cuts by axis-aligned planes.
+    tree: SegmentTree,
+    /// The solids with cuts: the sliceable solids, then the convex shells.
+    cut_solids: Vec<CutSolid>,
+    /// Per solid with cuts, its cuts by axis-aligned planes.
     cuts: Vec<Vec<Cut>>,
-    solid_tree: BoxTree,
+    solid_tree: SegmentTree,
+}
+
+/// What the cut tests need of a solid with cuts: a sliceable solid (whose
+/// cuts are where its triangles cross a plane), or a convex shell (whose
+/// cuts are its shrunk polytope's cross-sections, convex polygons: a
+/// segment crossing one passes through the polytope, which the shell's
+/// argument covers as it does for the polytope as a solid).
+#[derive(Clone, Copy, Debug)]
+struct CutSolid {
+    object: u32,
+    /// Its box: for a shell, the box of its polygons, which holds the
+    /// polytope before it was shrunk.
+    min: DVec3,
+    max: DVec3,
+    open_bottom: Option<f64>,
+    /// For a shell, the largest cell slack it may be used from.
+    shell_slack: Option<f64>,
+}
+
+/// A [`BoxTree::for_segments`] made four wide for [`along_until`]: each
+/// node holds the boxes of up to four children (the binary tree's nodes
+/// of largest area opened until four are left), in f32 lanes that one
+/// pass tests together, relative to the centre of the whole and grown by
+/// [`SegmentTree::GROW`] of its size (many times the f32 rounding of a
+/// point in it).
+struct SegmentTree {
+    nodes: Vec<WideNode>,
+    centre: DVec3,
+}
+
+/// A node of a [`SegmentTree`]: per lane (child), its box's lower and
+/// upper bounds along each axis, and the child (a node's index, or an
+/// object where `leaves` has its bit).
+#[derive(Clone, Copy, Debug)]
+struct WideNode {
+    min: [[f32; 4]; 3],
+    max: [[f32; 4]; 3],
+    child: [u32; 4],
+    count: u8,
+    leaves: u8,
+}
+
+impl SegmentTree {
+    /// The growth of the boxes, relative to the whole's half size.
+    const GROW: f64 = 64.0 * f32::EPSILON as f64;
+
+    fn new(boxes: &[Aabb]) -> Self {
+        let tree = BoxTree::for_segments(boxes);
+        let mut nodes = Vec::new();
+        let Some(root) = tree.nodes().first() else {
+            return Self {
+                nodes,
+                centre: DVec3::ZERO,
+            };
+        };
+        let (lo, hi) = (root.bounds().min.as_dvec3(), root.bounds().max.as_dvec3());
+        let centre = 0.5 * (lo + hi);
+        let pad = Self::GROW * (0.5 * (hi - lo)).max_element() + f64::from(f32::MIN_POSITIVE);
+        Self::widen(tree.nodes(), 0, (centre, pad), &mut nodes);
+        Self { nodes, centre }
+    }
+
+    /// The root of `binary`'s node `k` made wide, appended to `wide`
+    /// (children after their parent), its boxes relative to `centre` and
+    /// grown by `pad`; returns its index.
+    fn widen(
+        binary: &[BoxNode],
+        k: u32,
+        (centre, pad): (DVec3, f64),
+        wide: &mut Vec<WideNode>,
+    ) -> u32 {
+        let mut lanes: Vec<u32> = match binary[k as usize] {
+            BoxNode::Object { .. } => vec![k],
+            BoxNode::Inner { children, .. } => children.to_vec(),
+        };
+        while lanes.len() < 4 {
+            let area = |c: u32| {
+                let s = binary[c as usize].bounds().size();
+                s.x * s.y + s.y * s.z + s.z * s.x
+            };
+            let open = lanes
+                .iter()
+                .enumerate()
+                .filter_map(|(i, &c)| match binary[c as usize] {
+                    BoxNode::Inner { children, .. } => Some((i, area(c), children)),
+                    BoxNode::Object { .. } => None,
+                })
+                .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)));
+            let Some((i, _, children)) = open else { break };
+            lanes.splice(i..=i, children);
+        }
+        let me = wide.len() as u32;
+        wide.push(WideNode {
+            min: [[f32::INFINITY; 4]; 3],
+            max: [[f32::NEG_INFINITY; 4]; 3],
+            child: [0; 4],
+            count: lanes.len() as u8,
+            leaves: 0,
+        });
+        for (lane, &c) in lanes.iter().enumerate() {
+            let node = &binary[c as usize];
+            let b = node.bounds();
+            let child = match *node {
+                BoxNode::Object { object, .. } => {
+                    wide[me as usize].leaves |= 1 << lane;
+                    object
+                }
+                BoxNode::Inner { .. } => Self::widen(binary, c, (centre, pad), wide),
+            };
+            let w = &mut wide[me as usize];
+            w.child[lane] = child;
+            let (lo, hi) = (
+                b.min.as_dvec3() - centre - pad,
+                b.max.as_dvec3() - centre + pad,
+            );
+            for axis in 0..3 {
+                // Rounded outwards, so the grown box holds the box.
+                w.min[axis][lane] = (lo[axis] as f32).next_down();
+                w.max[axis][lane] = (hi[axis] as f32).next_up();
+            }
+        }
+        me
+    }
 }
 
 /// A sliceable solid's cut by the plane `p[axis] = at`: closed loops of
@@ -147,10 +274,9 @@ struct Part {
 
 /// What one object's search needs.
 pub struct Search<'a> {
-    /// The occluders (as the oracle holds them).
+    /// The occluders (as the oracle holds them, and as [`Shafts::new`]
+    /// was given them).
     pub occluders: &'a [Occluder],
-    /// The solids that can be sliced (as the oracle holds them).
-    pub solids: &'a [SlicedSolid],
     /// Objects whose occluders and solids are not used (proved hidden from
     /// a parent cell, so `check`'s top-down walk matches the maps').
     pub skip: &'a (dyn Fn(u32) -> bool + Sync),
@@ -168,13 +294,36 @@ impl Shafts {
     pub fn new(occluders: &[Occluder], solids: &[SlicedSolid]) -> Self {
         let blockers = occluders.iter().map(blocker).collect();
         let boxes: Vec<Aabb> = occluders.iter().map(|o| outward(o.min, o.max)).collect();
-        let cuts = solids.iter().map(solid_cuts).collect();
-        let solid_boxes: Vec<Aabb> = solids.iter().map(|s| outward(s.min, s.max)).collect();
+        let mut cut_solids: Vec<CutSolid> = solids
+            .iter()
+            .map(|s| CutSolid {
+                object: s.object,
+                min: s.min,
+                max: s.max,
+                open_bottom: s.open_bottom,
+                shell_slack: None,
+            })
+            .collect();
+        let mut cuts: Vec<Vec<Cut>> = solids.iter().map(solid_cuts).collect();
+        for o in occluders {
+            if o.shell_slack.is_some() {
+                cut_solids.push(CutSolid {
+                    object: o.object,
+                    min: o.min,
+                    max: o.max,
+                    open_bottom: None,
+                    shell_slack: o.shell_slack,
+                });
+                cuts.push(shell_cuts(o));
+            }
+        }
+        let solid_boxes: Vec<Aabb> = cut_solids.iter().map(|s| outward(s.min, s.max)).collect();
         Self {
             blockers,
-            tree: BoxTree::new(&boxes),
+            tree: SegmentTree::new(&boxes),
+            cut_solids,
             cuts,
-            solid_tree: BoxTree::new(&solid_boxes),
+            solid_tree: SegmentTree::new(&solid_boxes),
         }
     }
 
@@ -196,6 +345,7 @@ impl Shafts {
             max: qmax,
             cluster: (!clusters.is_empty()).then_some(0),
         };
+        debug_assert_eq!(search.occluders.len(), self.blockers.len());
         let mut budget = search.budget;
         let mut hint = None;
         self.shaft(
@@ -254,7 +404,11 @@ impl Shafts {
         let mut occluder = |t: u32| {
             let k = t as usize;
             let o = &search.occluders[k];
-            if o.object == object || (search.skip)(o.object) || !meets(o, p, q) {
+            if o.object == object
+                || (search.skip)(o.object)
+                || !o.usable(search.slack)
+                || !meets(o, p, q)
+            {
                 return false;
             }
             any = true;
@@ -282,10 +436,10 @@ impl Shafts {
         let mut solid_found = None;
         if along_until(&self.solid_tree, p, q, &mut |k| {
             let k = k as usize;
-            let Some(solid) = search.solids.get(k) else {
+            let Some(solid) = self.cut_solids.get(k) else {
                 return false;
             };
-            if solid.object == object || (search.skip)(solid.object) {
+            if solid.object == object || (search.skip)(solid.object) || !solid.usable(search) {
                 return false;
             }
             any = true;
@@ -427,9 +581,14 @@ impl Shafts {
         if !self.may_block(search, k, a, b) {
             return false;
         }
-        self.cuts[k]
-            .iter()
-            .any(|cut| crossings(cut, a, b, search.slack).is_some_and(|rect| cut_blocks(cut, rect)))
+        let centres = (0.5 * (a.0.0 + a.0.1), 0.5 * (b.0 + b.1));
+        self.cuts[k].iter().any(|cut| {
+            // From the cell (not through a portal) every crossing lies in
+            // one rectangle, which holds the centres' crossing: one far
+            // outside the cut's bounds rules the cut out at once.
+            (a.1.is_some() || !crosses_apart(cut, centres, search.slack))
+                && crossings(cut, a, b, search.slack).is_some_and(|rect| cut_blocks(cut, rect))
+        })
     }
 
     /// What a cut of solid `k` needs besides its plane: one end (or the
@@ -442,7 +601,7 @@ impl Shafts {
         (a, from): ((DVec3, DVec3), Option<(DVec3, DVec3)>),
         b: (DVec3, DVec3),
     ) -> bool {
-        let solid = &search.solids[k];
+        let solid = &self.cut_solids[k];
         let slack = search.slack;
         let parts = [Some(a), Some(b), from];
         if let Some(floor) = solid.open_bottom
@@ -472,11 +631,12 @@ impl Shafts {
         let mut best: Option<(f64, (DVec3, DVec3))> = None;
         along_until(&self.solid_tree, p, q, &mut |k| {
             let k = k as usize;
-            let Some(solid) = search.solids.get(k) else {
+            let Some(solid) = self.cut_solids.get(k) else {
                 return false;
             };
             if solid.object == object
                 || (search.skip)(solid.object)
+                || !solid.usable(search)
                 || !self.may_block(search, k, a, b)
             {
                 return false;
@@ -526,60 +686,67 @@ impl Shafts {
 }
 
 /// Visits the items of `tree` whose boxes the segment `p -> q` meets,
-/// nearest to `p` first (by where the segment enters their nodes), until
-/// `visit` returns true; returns whether it did. A guide for the shafts:
-/// the boxes are tested in f64 from their f32 corners, no slack.
-fn along_until(tree: &BoxTree, p: DVec3, q: DVec3, visit: &mut dyn FnMut(u32) -> bool) -> bool {
-    let nodes = tree.nodes();
-    if nodes.is_empty() {
+/// nearest to `p` first (by where the segment enters their boxes, among
+/// a node's children), until `visit` returns true; returns whether it
+/// did. A guide for the shafts: the boxes are tested in f32, grown by
+/// more than its rounding for segments within the tree's box (a box
+/// that the segment only grazes may be missed from far outside it).
+fn along_until(tree: &SegmentTree, p: DVec3, q: DVec3, visit: &mut dyn FnMut(u32) -> bool) -> bool {
+    if tree.nodes.is_empty() {
         return false;
     }
+    // Along an axis the segment does not move on, a large finite inverse
+    // (not an infinite one, which times a zero distance is no number)
+    // puts the whole segment in or out of the slab.
+    const HUGE: f32 = 1e30;
     let d = q - p;
-    let inv = DVec3::ONE / d;
-    let enter = |b: &Aabb| -> Option<f64> {
-        let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
-        let (mut t0, mut t1) = (0.0f64, 1.0f64);
-        for axis in 0..3 {
-            if d[axis] == 0.0 {
-                if p[axis] < lo[axis] || p[axis] > hi[axis] {
-                    return None;
-                }
-                continue;
-            }
-            let (u, v) = (
-                (lo[axis] - p[axis]) * inv[axis],
-                (hi[axis] - p[axis]) * inv[axis],
-            );
-            t0 = t0.max(u.min(v));
-            t1 = t1.min(u.max(v));
+    let origin = (p - tree.centre).as_vec3().to_array();
+    let inv = [0, 1, 2].map(|k| {
+        let i = (1.0 / d[k]) as f32;
+        if i.is_finite() {
+            i.clamp(-HUGE, HUGE)
+        } else {
+            HUGE
         }
-        (t0 <= t1).then_some(t0)
-    };
-    if enter(nodes[0].bounds()).is_none() {
-        return false;
-    }
-    let mut stack = Vec::with_capacity(64);
-    stack.push(0u32);
-    while let Some(k) = stack.pop() {
-        match &nodes[k as usize] {
-            BoxNode::Object { object, .. } => {
-                if visit(*object) {
-                    return true;
-                }
+    });
+    // Nodes, and objects (`true`), the nearest on top.
+    let mut stack: Vec<(u32, bool)> = Vec::with_capacity(64);
+    stack.push((0, false));
+    while let Some((k, leaf)) = stack.pop() {
+        if leaf {
+            if visit(k) {
+                return true;
             }
-            BoxNode::Inner { children, .. } => {
-                let [a, b] = children.map(|c| (enter(nodes[c as usize].bounds()), c));
-                match (a.0, b.0) {
-                    (Some(ta), Some(tb)) => {
-                        let (near, far) = if ta <= tb { (a.1, b.1) } else { (b.1, a.1) };
-                        stack.push(far);
-                        stack.push(near);
-                    }
-                    (Some(_), None) => stack.push(a.1),
-                    (None, Some(_)) => stack.push(b.1),
-                    (None, None) => {}
-                }
+            continue;
+        }
+        let node = &tree.nodes[k as usize];
+        let mut t0 = [0.0f32; 4];
+        let mut t1 = [1.0f32; 4];
+        for axis in 0..3 {
+            for lane in 0..4 {
+                let u = (node.min[axis][lane] - origin[axis]) * inv[axis];
+                let v = (node.max[axis][lane] - origin[axis]) * inv[axis];
+                t0[lane] = t0[lane].max(u.min(v));
+                t1[lane] = t1[lane].min(u.max(v));
             }
+        }
+        // The lanes met, farthest first, so the nearest is popped first.
+        let mut met = [(0.0f32, 0usize); 4];
+        let mut n = 0;
+        for lane in 0..node.count as usize {
+            if t0[lane] <= t1[lane] {
+                let mut i = n;
+                while i > 0 && met[i - 1].0 < t0[lane] {
+                    met[i] = met[i - 1];
+                    i -= 1;
+                }
+                met[i] = (t0[lane], lane);
+                n += 1;
+            }
+        }
+        for &(_, lane) in &met[..n] {
+            let leaf = node.leaves & (1 << lane) != 0;
+            stack.push((node.child[lane], leaf));
         }
     }
     false
@@ -608,6 +775,24 @@ fn crossings_inside(
         return false;
     }
     let (ca, cb) = (corners(a.0, a.1), corners(b.0, b.1));
+    let half_planes = if o.solid { &o.planes } else { &blocker.edges };
+    let all_inside = |margin: f64| {
+        ca.iter().all(|&p| {
+            let sp = n.dot(p) - c;
+            cb.iter().all(|&q| {
+                let sq = n.dot(q) - c;
+                let x = p + (q - p) * (sp / (sp - sq));
+                half_planes.iter().all(|&(m, e)| m.dot(x) <= e - margin)
+            })
+        })
+    };
+    // Most tries fail: for a polygon, a first pass without the margin
+    // (which is never negative, so `e - margin <= e` and this pass is
+    // passed by every crossing the real test passes) turns them away
+    // before the margin's 64 square roots are paid for.
+    if !o.solid && !all_inside(0.0) {
+        return false;
+    }
     // A polygon's margin: the tracer's rounding moves a ray by up to the
     // slack across its line, and a bent polygon's triangles lie up to its
     // flatness off the plane; along the plane either moves the crossing by
@@ -619,22 +804,7 @@ fn crossings_inside(
     } else {
         (slack + blocker.flatness) / min_sine(n, &ca, &cb)
     };
-    for &p in &ca {
-        let sp = n.dot(p) - c;
-        for &q in &cb {
-            let sq = n.dot(q) - c;
-            let x = p + (q - p) * (sp / (sp - sq));
-            let inside = if o.solid {
-                o.planes.iter().all(|&(m, d)| m.dot(x) <= d - margin)
-            } else {
-                blocker.edges.iter().all(|&(m, e)| m.dot(x) <= e - margin)
-            };
-            if !inside {
-                return false;
-            }
-        }
-    }
-    true
+    all_inside(margin)
 }
 
 /// The smallest sine of the angle between the plane of normal `n` (a unit
@@ -648,6 +818,29 @@ fn min_sine(n: DVec3, ca: &[DVec3; 8], cb: &[DVec3; 8]) -> f64 {
         }
     }
     sine
+}
+
+/// [`min_sine`] for the plane across `axis` and boxes `a` and `b` that it
+/// separates, in constant time. The directions `b - a` fill a box whose
+/// corners are differences of the boxes' corners, and the sine
+/// `|d[axis]| / |d|` is smallest at the one nearest the plane across the
+/// axis and farthest from it along the other two: the same corner pair
+/// the loop over all 64 finds, with the same arithmetic, so the same value.
+fn axis_min_sine(axis: usize, a: (DVec3, DVec3), b: (DVec3, DVec3)) -> f64 {
+    let mut d = DVec3::ZERO;
+    for i in 0..3 {
+        let (low, high) = (b.0[i] - a.1[i], b.1[i] - a.0[i]);
+        d[i] = if i == axis {
+            if low > 0.0 { low } else { high }
+        } else if low.abs() >= high.abs() {
+            low
+        } else {
+            high
+        };
+    }
+    let mut n = DVec3::ZERO;
+    n[axis] = 1.0;
+    n.dot(d).abs() / d.length()
 }
 
 /// Whether the segment `p -> q` meets occluder `o` (a solid's inside, a
@@ -685,13 +878,17 @@ fn meets(o: &Occluder, p: DVec3, q: DVec3) -> bool {
     let x = p + d * (sp / (sp - sq));
     // Inside the hull: the same side of every edge.
     let k = o.points.len();
-    let sides: Vec<f64> = (0..k)
-        .map(|i| {
-            let (u, v) = (o.points[i], o.points[(i + 1) % k]);
-            (v - u).cross(x - u).dot(n)
-        })
-        .collect();
-    sides.iter().all(|&s| s >= 0.0) || sides.iter().all(|&s| s <= 0.0)
+    let (mut left, mut right) = (true, true);
+    for i in 0..k {
+        let (u, v) = (o.points[i], o.points[(i + 1) % k]);
+        let side = (v - u).cross(x - u).dot(n);
+        left &= side >= 0.0;
+        right &= side <= 0.0;
+        if !left && !right {
+            return false;
+        }
+    }
+    true
 }
 
 /// The rectangle on `cut`'s plane (its `(u, v)`) holding every crossing of
@@ -708,10 +905,8 @@ fn crossings(
     slack: f64,
 ) -> Option<(DVec2, DVec2, f64)> {
     let k = cut.axis;
-    let (c, u, v) = (cut.at, (k + 1) % 3, (k + 2) % 3);
+    let c = cut.at;
     let separated = |x: (DVec3, DVec3), y: (DVec3, DVec3)| separates(cut, x, y, slack);
-    let mut n = DVec3::ZERO;
-    n[k] = 1.0;
     // Every segment crosses the plane once, inside the rectangle of each
     // pair of boxes it passes through in turn on the plane's two sides
     // (`a` and `b`, `a.1` and `b`, `a.1` and `a`); its direction lies in
@@ -749,25 +944,58 @@ fn crossings(
         }
     }
     for &(p0, q0) in &pairs[..count] {
-        let (ca, cb) = (corners(p0.0, p0.1), corners(q0.0, q0.1));
-        let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
-        for &p in &ca {
-            for &q in &cb {
-                let t = (c - p[k]) / (q[k] - p[k]);
-                let x = p + (q - p) * t;
-                let x = DVec2::new(x[u], x[v]);
-                lo = lo.min(x);
-                hi = hi.max(x);
-            }
-        }
+        let (lo, hi) = pair_rect(k, c, p0, q0);
         rect = Some(match rect {
             None => (lo, hi),
             Some((l, h)) => (l.max(lo), h.min(hi)),
         });
-        sine = sine.max(min_sine(n, &ca, &cb));
+        sine = sine.max(axis_min_sine(k, p0, q0));
     }
     let (lo, hi) = rect?;
     Some((lo, hi, slack / sine))
+}
+
+/// The rectangle, in the plane `p[k] = c`'s `(u, v)` (the other two axes
+/// in turn), of the crossings of the segments between the corners of
+/// boxes `a` and `b` that it separates. A crossing is `p + (q - p) t` for
+/// corners `p` and `q`, with `t` from their coordinates along `k` alone,
+/// so its coordinate along `u` depends on four of their six: the 16 ways
+/// to choose those give the bounds over all 64 pairs, by the same
+/// arithmetic, so the same bounds to the bit.
+fn pair_rect(k: usize, c: f64, a: (DVec3, DVec3), b: (DVec3, DVec3)) -> (DVec2, DVec2) {
+    let ts = [
+        (a.0[k], b.0[k]),
+        (a.0[k], b.1[k]),
+        (a.1[k], b.0[k]),
+        (a.1[k], b.1[k]),
+    ]
+    .map(|(pk, qk)| (c - pk) / (qk - pk));
+    let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
+    for (i, w) in [(k + 1) % 3, (k + 2) % 3].into_iter().enumerate() {
+        for pw in [a.0[w], a.1[w]] {
+            for qw in [b.0[w], b.1[w]] {
+                for t in ts {
+                    let x = pw + (qw - pw) * t;
+                    lo[i] = lo[i].min(x);
+                    hi[i] = hi[i].max(x);
+                }
+            }
+        }
+    }
+    (lo, hi)
+}
+
+/// Whether the segment `p -> q` crosses `cut`'s plane outside the cut's
+/// bounding rectangle by more than `slack` (far beyond the rounding of
+/// the arithmetic); false when it does not cross it.
+fn crosses_apart(cut: &Cut, (p, q): (DVec3, DVec3), slack: f64) -> bool {
+    let (k, c) = (cut.axis, cut.at);
+    if (p[k] - c) * (q[k] - c) >= 0.0 {
+        return false;
+    }
+    let x = p + (q - p) * ((c - p[k]) / (q[k] - p[k]));
+    let x = DVec2::new(x[(k + 1) % 3], x[(k + 2) % 3]);
+    x.cmplt(cut.lo - slack).any() || x.cmpgt(cut.hi + slack).any()
 }
 
 /// Whether `cut`'s plane has box `x` strictly on one side and box `y` on
@@ -834,6 +1062,11 @@ fn hole(cut: &Cut, lo: DVec2, hi: DVec2, grow: f64) -> Option<(DVec2, DVec2)> {
         return None;
     }
     let (glo, ghi) = (lo - grow, hi + grow);
+    // Apart from the loops' bounds: all of it outside them (what the rest
+    // would find, by walking every loop segment).
+    if ghi.cmplt(cut.lo).any() || glo.cmpgt(cut.hi).any() {
+        return None;
+    }
     let (mut hlo, mut hhi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
     for &[p, q] in &cut.segments {
         if p.x.max(q.x) < glo.x
@@ -889,6 +1122,62 @@ fn clip_to_rect(p: DVec2, q: DVec2, lo: DVec2, hi: DVec2) -> Option<(DVec2, DVec
     Some((p + d * t0, p + d * t1))
 }
 
+impl Cut {
+    /// The cut at `p[axis] = at` whose loops are `segments`, with their
+    /// bounding rectangle.
+    fn new(axis: usize, at: f64, segments: Vec<[DVec2; 2]>) -> Self {
+        let (lo, hi) = segments
+            .iter()
+            .flatten()
+            .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(a, b), &p| {
+                (a.min(p), b.max(p))
+            });
+        Self {
+            axis,
+            at,
+            segments,
+            lo,
+            hi,
+        }
+    }
+}
+
+impl CutSolid {
+    /// Whether it may be used from the search's cell (a shell only up to
+    /// the slack its margins were sized for).
+    fn usable(&self, search: &Search) -> bool {
+        self.shell_slack.is_none_or(|s| search.slack <= s)
+    }
+}
+
+/// A convex shell's cuts: along each axis, at the middle and near both
+/// sides of its box, its shrunk polytope's cross-section (one loop of
+/// segments around a convex polygon; none where the plane misses it).
+fn shell_cuts(shell: &Occluder) -> Vec<Cut> {
+    let mut out = Vec::new();
+    let (min, max) = (shell.min, shell.max);
+    let centre = 0.5 * (min + max);
+    let size = (max - min).length();
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for f in DEPTHS {
+            let at = min[axis] + f * (max[axis] - min[axis]);
+            let mut n = DVec3::ZERO;
+            n[axis] = 1.0;
+            let section = super::oracle_occluders::section(&shell.planes, (n, at), centre, size);
+            if section.len() < 3 {
+                continue;
+            }
+            let points: Vec<DVec2> = section.iter().map(|p| DVec2::new(p[u], p[v])).collect();
+            let segments: Vec<[DVec2; 2]> = (0..points.len())
+                .map(|i| [points[i], points[(i + 1) % points.len()]])
+                .collect();
+            out.push(Cut::new(axis, at, segments));
+        }
+    }
+    out
+}
+
 /// A sliceable solid's cuts: along each axis, at the middle and near both
 /// sides (those that close).
 fn solid_cuts(solid: &SlicedSolid) -> Vec<Cut> {
@@ -903,19 +1192,7 @@ fn solid_cuts(solid: &SlicedSolid) -> Vec<Cut> {
             let Some(segments) = slice_segments(solid, frame, at) else {
                 continue;
             };
-            let (lo, hi) = segments
-                .iter()
-                .flatten()
-                .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(a, b), &p| {
-                    (a.min(p), b.max(p))
-                });
-            out.push(Cut {
-                axis,
-                at,
-                segments,
-                lo,
-                hi,
-            });
+            out.push(Cut::new(axis, at, segments));
         }
     }
     out
@@ -943,9 +1220,18 @@ fn outward(min: DVec3, max: DVec3) -> Aabb {
 /// An occluder's blocking planes (and a polygon's edges).
 fn blocker(o: &Occluder) -> Blocker {
     if o.solid {
-        // Distinct face normals with the solid's width along each.
+        // Distinct face normals with the solid's width along each; for a
+        // convex shell, whose hundreds of faces turn a little each, the
+        // three axes instead (its cross-sections, wide whichever way a
+        // shaft runs).
         let mut normals: Vec<(f64, DVec3, f64, f64)> = Vec::new();
-        for &(n, _) in &o.planes {
+        let axes = [DVec3::X, DVec3::Y, DVec3::Z].map(|n| (n, 0.0));
+        let faces: &[(DVec3, f64)] = if o.shell_slack.is_some() {
+            &axes
+        } else {
+            &o.planes
+        };
+        for &(n, _) in faces {
             if normals
                 .iter()
                 .any(|&(_, m, _, _)| 1.0 - n.dot(m).abs() < PARALLEL)
@@ -1036,7 +1322,6 @@ mod tests {
     fn search<'a>(occluders: &'a [Occluder], skip: &'a (dyn Fn(u32) -> bool + Sync)) -> Search<'a> {
         Search {
             occluders,
-            solids: &[],
             skip,
             slack: 1e-5,
             budget: 1_000_000,
@@ -1076,6 +1361,102 @@ mod tests {
             })
             .count();
         open as f64 / 20_000.0
+    }
+
+    /// A shell's cuts are its shrunk polytope's cross-sections: convex,
+    /// closed, inside every one of its planes, and in the planes named.
+    #[test]
+    fn a_shells_cuts_are_its_cross_sections() {
+        use crate::scene::procedural::{SceneKind, generate};
+        let grove = generate(SceneKind::Grove, 1, 1);
+        let found = super::super::oracle_occluders::extract(&grove);
+        let shell = found
+            .occluders
+            .iter()
+            .find(|o| o.shell_slack.is_some())
+            .expect("a shell");
+        let cuts = shell_cuts(shell);
+        assert_eq!(cuts.len(), 9);
+        for cut in &cuts {
+            let (k, u, v) = (cut.axis, (cut.axis + 1) % 3, (cut.axis + 2) % 3);
+            assert!(cut.segments.len() >= 3);
+            for (i, &[p, q]) in cut.segments.iter().enumerate() {
+                // Closed: each segment ends where the next starts.
+                assert_eq!(q, cut.segments[(i + 1) % cut.segments.len()][0]);
+                let mut x = DVec3::ZERO;
+                (x[k], x[u], x[v]) = (cut.at, p.x, p.y);
+                assert!(shell.planes.iter().all(|&(n, d)| n.dot(x) <= d + 1e-9));
+            }
+            // The middle of the section is inside the loops.
+            assert!(inside_loops(cut, 0.5 * (cut.lo + cut.hi)));
+        }
+    }
+
+    #[test]
+    fn the_sine_in_constant_time_is_the_loops_to_the_bit() {
+        let mut rng = Pcg64::seed_from_u64(5);
+        let boxes = |rng: &mut Pcg64| {
+            let lo = DVec3::new(
+                rng.random_range(-50.0..50.0),
+                rng.random_range(-50.0..50.0),
+                rng.random_range(-50.0..50.0),
+            );
+            let size = DVec3::new(
+                rng.random_range(0.0..8.0),
+                rng.random_range(0.0..8.0),
+                rng.random_range(0.0..8.0),
+            );
+            (lo, lo + size)
+        };
+        let mut tried = 0;
+        while tried < 20_000 {
+            let (a, b) = (boxes(&mut rng), boxes(&mut rng));
+            for axis in 0..3 {
+                if a.1[axis] >= b.0[axis] && b.1[axis] >= a.0[axis] {
+                    continue;
+                }
+                let mut n = DVec3::ZERO;
+                n[axis] = 1.0;
+                let looped = min_sine(n, &corners(a.0, a.1), &corners(b.0, b.1));
+                assert_eq!(axis_min_sine(axis, a, b).to_bits(), looped.to_bits());
+                tried += 1;
+            }
+        }
+    }
+
+    #[test]
+    fn the_crossings_rectangle_from_16_pairs_is_the_64s_to_the_bit() {
+        let mut rng = Pcg64::seed_from_u64(6);
+        let mut tried = 0;
+        while tried < 20_000 {
+            let mut corner = || DVec3::from_array([0; 3].map(|_| rng.random_range(-30.0..30.0)));
+            let (a, b) = ((corner(), corner()), (corner(), corner()));
+            let (a, b) = ((a.0.min(a.1), a.0.max(a.1)), (b.0.min(b.1), b.0.max(b.1)));
+            let k = tried % 3;
+            if a.1[k] >= b.0[k] && b.1[k] >= a.0[k] {
+                continue;
+            }
+            let c = if a.1[k] < b.0[k] {
+                0.5 * (a.1[k] + b.0[k])
+            } else {
+                0.5 * (b.1[k] + a.0[k])
+            };
+            let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+            let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
+            for p in corners(a.0, a.1) {
+                for q in corners(b.0, b.1) {
+                    let x = p + (q - p) * ((c - p[k]) / (q[k] - p[k]));
+                    lo = lo.min(DVec2::new(x[u], x[v]));
+                    hi = hi.max(DVec2::new(x[u], x[v]));
+                }
+            }
+            let (l, h) = pair_rect(k, c, a, b);
+            assert_eq!(
+                [l.x, l.y, h.x, h.y].map(f64::to_bits),
+                [lo.x, lo.y, hi.x, hi.y].map(f64::to_bits)
+            );
+            tried += 1;
+        }
     }
 
     #[test]
@@ -1270,7 +1651,6 @@ mod tests {
         );
         let no = |_: u32| false;
         let with_cuts = Search {
-            solids: &found.solids,
             ..search(&found.occluders, &no)
         };
         let shafts = Shafts::new(&found.occluders, &found.solids);
@@ -1370,7 +1750,6 @@ mod tests {
         let no = |_: u32| false;
         let shafts = Shafts::new(&found.occluders, &found.solids);
         let tight = Search {
-            solids: &found.solids,
             budget: 64,
             depth: 16,
             ..search(&found.occluders, &no)
@@ -1391,7 +1770,6 @@ mod tests {
         assert!(seen_by_segments(&scene, 2) > 0);
         let shafts = Shafts::new(&found.occluders, &found.solids);
         let open = Search {
-            solids: &found.solids,
             ..search(&found.occluders, &no)
         };
         assert!(!shafts.hidden(&open, 2, &[], CELL, qmin, qmax));

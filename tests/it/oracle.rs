@@ -1192,16 +1192,65 @@ fn review_counterexamples_to_sealing_stay_fixed() {
     }
 }
 
+/// Asserts that none of `hidden` is hit by `per_object` segments from
+/// random points of `cell` to random points of its surface.
+fn assert_unseen(
+    scene: &Scene,
+    tracer: &Tracer,
+    cell: &Aabb,
+    hidden: &[usize],
+    per_object: usize,
+    rng: &mut Pcg64,
+) {
+    for &o in hidden {
+        let rays: Vec<Ray> = (0..per_object)
+            .map(|_| Ray::segment(uniform_point(rng, cell), scene.sample_surface(o, rng)))
+            .collect();
+        let hits = tracer.closest_hits(&rays);
+        assert!(
+            hits.iter().flatten().all(|h| h.object as usize != o),
+            "hidden object {o} ({}) seen",
+            scene.objects()[o].name
+        );
+    }
+}
+
+/// The grove's crowns are convex shells (leaves overlapping past their
+/// neighbours' planes): each hides as a solid, and its cross-sections
+/// are cuts for the shafts, so from a half-metre cell on the trail a
+/// fifth of the grove is proved hidden (without the shells, a few
+/// objects; with them but no cuts, a tenth), and rays, random and aimed
+/// at each hidden object, agree.
+#[test]
+fn the_groves_crowns_hide_as_convex_shells() {
+    use vis5d::scene::procedural::{SceneKind, generate};
+    let scene = generate(SceneKind::Grove, 1, 1);
+    let (x, y) = (10.0f32, 20.0 + 6.0 * (10.0f32 / 7.0).sin());
+    let cell = Aabb::new(Vec3::new(x, y, 1.0), Vec3::new(x + 0.5, y + 0.5, 1.5));
+    let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    assert!(oracle.occluder_counts().shells > 200);
+    let report = oracle.cell(&cell, None);
+    let n = scene.objects().len();
+    let hidden: Vec<usize> = (0..n).filter(|&i| !report.visible.contains(i)).collect();
+    assert!(hidden.len() >= n / 5, "{} of {n} hidden", hidden.len());
+    let tracer = Tracer::new(&scene);
+    let mut rng = Pcg64::seed_from_u64(45);
+    assert!(violations(&oracle, &tracer, &cell, 100_000, &mut rng).is_empty());
+    assert_unseen(&scene, &tracer, &cell, &hidden, 300, &mut rng);
+}
+
 /// The sweep reaching back (`sweep_reach`): in the grove, whose crowns are
 /// closed shells of separate leaf triangles, a small cell on the trail
 /// sees few trees, and the leaves fuse only through many thin sweep
 /// steps. Each plane also taking the reprojections of the planes 2, 4, 8
-/// and 16 back proves more hidden than the chain alone, and rays, random
-/// and aimed at every hidden object, agree. Here it hides a superset of
-/// what the chain hides, as on every cell measured; that is not certain
-/// in general (a plane the chain leaves empty, and skips, then holds
-/// reprojections, which shifts which planes are 1, 2, 4, ... back and
-/// which two planes an object is tested on).
+/// and 16 back proves more hidden than the chain alone (fewer more since
+/// the crowns hide as convex shells, stop 45: 155 against 149, where it
+/// was 98 against 81), and rays, random and aimed at every hidden object,
+/// agree. Here it hides a superset of what the chain hides, as on every
+/// cell measured; that is not certain in general (a plane the chain
+/// leaves empty, and skips, then holds reprojections, which shifts which
+/// planes are 1, 2, 4, ... back and which two planes an object is tested
+/// on).
 #[test]
 fn the_sweep_reaching_back_fuses_the_groves_crowns() {
     use vis5d::scene::procedural::{SceneKind, generate};
@@ -1228,7 +1277,7 @@ fn the_sweep_reaching_back_fuses_the_groves_crowns() {
         "reaching back lost a proof"
     );
     assert!(
-        hb.len() >= ha.len() + 10 && hb.len() >= n / 5,
+        hb.len() > ha.len() && hb.len() >= n / 4,
         "{} hidden reaching back, {} by the chain, of {n}",
         hb.len(),
         ha.len()
@@ -1236,22 +1285,7 @@ fn the_sweep_reaching_back_fuses_the_groves_crowns() {
     let tracer = Tracer::new(&scene);
     let mut rng = Pcg64::seed_from_u64(44);
     assert!(violations(&reaching, &tracer, &cell, 100_000, &mut rng).is_empty());
-    for &o in &hb {
-        let rays: Vec<Ray> = (0..200)
-            .map(|_| {
-                Ray::segment(
-                    uniform_point(&mut rng, &cell),
-                    scene.sample_surface(o, &mut rng),
-                )
-            })
-            .collect();
-        let hits = tracer.closest_hits(&rays);
-        assert!(
-            hits.iter().flatten().all(|h| h.object as usize != o),
-            "hidden object {o} ({}) seen",
-            scene.objects()[o].name
-        );
-    }
+    assert_unseen(&scene, &tracer, &cell, &hb, 200, &mut rng);
 }
 
 /// Settings out of their domain are refused by name, the sweep's reach
