@@ -6,7 +6,8 @@
 # with an error on the first object a ray hits that the oracle hid, so a
 # run that prints its mean line found no violation. Cells: street cells
 # (6 x 6 x 2 m, cities), room cells (3 x 3 x 2 m, buildings) and cells
-# anywhere in the scene's box (geometry in them or not, 4 sizes).
+# anywhere in the scene's box (geometry in them or not, 4 sizes); the
+# grove (made here) gets trail cells of 1 and 0.25 m.
 # METHOD shrink checks occluder shrinking (papers/004, issue 14) instead,
 # its cube maps on the CPU and on the GPU; both checks what neither proves.
 # SLICES N > 0 also culls the hidden slices of kept objects (papers/004
@@ -23,7 +24,13 @@ cargo build --release --quiet --example street_cells
 bin=${CARGO_TARGET_DIR:-target}/release/examples/street_cells
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
 shared=../shared/scenes
+# The grove (made): its crowns are the convex shells (stop 45).
+made=$(mktemp -d)
+trap 'rm -rf "$made"' EXIT
+cargo build --release --quiet --bin vis5d
+"${CARGO_TARGET_DIR:-target}/release/vis5d" scene grove -o "$made/grove.obj" > /dev/null
 models=(scenes/*.obj
+    "$made/grove.obj"
     "$shared/apartment_ifc_duplex/duplex_apartment.obj"
     "$shared/apartment_morse/apartment.obj"
     "$shared/city_san_francisco/san_francisco.obj"
@@ -37,6 +44,7 @@ for model in "${models[@]}"; do
     kinds=("--anywhere|1 --height 1" "--anywhere|4 --height 2" "--anywhere|0.05 --height 0.05" "--anywhere|30 --height 10")
     case "$name" in
         */city|*/san_francisco|*/land1_trees|*/forest) kinds+=("|6 --height 2") ;;
+        */grove) kinds+=("|1 --height 1" "|0.25 --height 0.25") ;;
         */machine) ;;
         *) kinds+=("--rooms|3 --height 2") ;;
     esac
