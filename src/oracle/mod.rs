@@ -80,6 +80,7 @@ mod oracle_sealed;
 mod oracle_shaft;
 mod oracle_slice;
 mod oracle_sweep;
+mod oracle_terrain;
 
 pub use oracle_check::{CheckParams, CheckReport, LeafCheck, Suspect, Violation, check_tree};
 pub(crate) use oracle_clusters::{Cluster, build as build_clusters, hidden_below};
@@ -359,6 +360,9 @@ pub struct Oracle<'a> {
     scene: &'a Scene,
     occluders: Vec<Occluder>,
     solids: Vec<SlicedSolid>,
+    /// The terrains (height fields over a rectangle of the ground): the
+    /// maps draw their cuts after the sliceable solids'.
+    terrains: Vec<oracle_terrain::Terrain>,
     patches: Vec<Patch>,
     clusters: Vec<Vec<oracle_clusters::Cluster>>,
     counts: OccluderCounts,
@@ -398,10 +402,20 @@ impl<'a> Oracle<'a> {
             (params.shaft_budget > 0).then(|| oracle_shaft::Shafts::new(&occluders, &solids));
         let tracer = (params.shaft_budget > 0).then(|| crate::trace::Tracer::new(scene));
         let sealed = oracle_sealed::Sealed::new(scene, &solids, params.seal_voxels);
+        let terrains = (0..scene.objects().len())
+            .filter(|&i| {
+                let o = &scene.objects()[i];
+                o.flags.occludes() && !o.is_empty()
+            })
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .filter_map(|i| oracle_terrain::Terrain::detect(i as u32, scene.object_triangles(i)))
+            .collect();
         Ok(Self {
             scene,
             occluders,
             solids,
+            terrains,
             patches,
             clusters,
             counts,
@@ -1011,6 +1025,23 @@ impl<'a> Oracle<'a> {
                 let d = (smin.z - centre.z).max(lmax.z - centre.z);
                 ((e.x + e.z) * (e.y + e.z) / (d * d), i, smin.z, smax.z)
             })
+            .chain(
+                self.terrains
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, t)| {
+                        !parent_hidden.is_some_and(|h| h.contains(t.object as usize))
+                            && t.usable(cmin, cmax, slack)
+                    })
+                    .map(|(k, t)| {
+                        let (a, b) = frame.local_box(
+                            DVec3::new(t.lo.x, t.lo.y, t.zmin),
+                            DVec3::new(t.hi.x, t.hi.y, t.zmax),
+                        );
+                        // Ranked last: no plane is placed through it.
+                        (0.0, self.solids.len() + k, a.z, b.z)
+                    }),
+            )
             .filter(|s| s.3 > lmax.z)
             .collect();
         if ranked.is_empty() && solids.is_empty() {
@@ -1058,7 +1089,7 @@ impl<'a> Oracle<'a> {
             );
             let mut level0 = cpu_rasterise(m, &occ);
             let rect = self.plane_rect(lmin, lmax, wp);
-            self.draw_slices(frame, &solids, rect, wp, m, &mut level0);
+            self.draw_slices(frame, &solids, rect, wp, m, slack, &mut level0);
             let filled = level0.iter().filter(|d| d.is_finite()).count();
             // The score: objects this plane alone hides at the low
             // resolution, then filled pixels (the paper's measure).
@@ -1240,7 +1271,8 @@ impl<'a> Oracle<'a> {
         let mut planes: Vec<SweepPlane> = Vec::with_capacity(steps.len());
         for (step, mut level0) in steps.into_iter().zip(level0) {
             let (wp, rect) = (step.wp, step.rect);
-            self.draw_slices(frame, &face.solids, rect, wp, n, &mut level0);
+            let slack = self.slack(cmin, cmax);
+            self.draw_slices(frame, &face.solids, rect, wp, n, slack, &mut level0);
             if let Some(i) = step.patch {
                 oracle_patches::draw_patch(&mut level0, n, rect.0, rect.1, &self.patches[i]);
             }
@@ -1287,7 +1319,9 @@ impl<'a> Oracle<'a> {
     ) -> (DepthMap, PlaneReport) {
         let n = self.params.resolution;
         let (rmin, rmax) = self.plane_rect(lmin, lmax, wp);
-        let sliced = self.draw_slices(frame, solids, (rmin, rmax), wp, n, &mut level0);
+        let (wa, wb) = (frame.world(lmin), frame.world(lmax));
+        let slack = self.slack(wa.min(wb), wa.max(wb));
+        let sliced = self.draw_slices(frame, solids, (rmin, rmax), wp, n, slack, &mut level0);
         let mut map = DepthMap::from_level0(rmin, rmax, n, level0);
         map.build_pyramid();
         let report = PlaneReport {
@@ -1301,10 +1335,11 @@ impl<'a> Oracle<'a> {
         (map, report)
     }
 
-    /// Draws the cuts of the eligible solids (`(size, index, w min, w max)`)
-    /// that straddle the plane at `wp` into the `n` x `n` level-0 map over
-    /// the plane rectangle `rect`, at Depth 0; returns how many solids were
-    /// cut.
+    /// Draws the cuts of the eligible solids (`(size, index, w min, w max)`;
+    /// an index past the sliceable solids is a terrain's, counted on from
+    /// them) that straddle the plane at `wp` into the `n` x `n` level-0
+    /// map over the plane rectangle `rect`, at Depth 0, for a cell whose
+    /// tracer slack is `slack`; returns how many solids were cut.
     #[allow(clippy::too_many_arguments)]
     fn draw_slices(
         &self,
@@ -1313,6 +1348,7 @@ impl<'a> Oracle<'a> {
         rect: (DVec2, DVec2),
         wp: f64,
         n: usize,
+        slack: f64,
         level0: &mut [f64],
     ) -> usize {
         let (rmin, rmax) = rect;
@@ -1325,7 +1361,13 @@ impl<'a> Oracle<'a> {
             if !(w0 < wp && wp < w1) {
                 continue;
             }
-            let s = &self.solids[i];
+            let Some(s) = self.solids.get(i) else {
+                let t = &self.terrains[i - self.solids.len()];
+                if t.draw(frame, wp, rect, n, slack, level0) > 0 {
+                    count += 1;
+                }
+                continue;
+            };
             let (smin, smax) = frame.local_box(s.min, s.max);
             if smax.x <= rmin.x || smax.y <= rmin.y || smin.x >= rmax.x || smin.y >= rmax.y {
                 continue;
@@ -1613,7 +1655,8 @@ struct SweepStep {
 /// What one face's plane placement found, for its sweep: the occluders in
 /// front of the face (`(size, index, box min, box max)`, frame
 /// coordinates, largest first), the solids to slice (`(size, index, w
-/// min, w max)`) and the cell's corners.
+/// min, w max)`: sliceable solids by their index, then terrains numbered
+/// on from them, see [`Oracle::draw_slices`]) and the cell's corners.
 struct FaceSetup {
     ranked: Vec<(f64, usize, DVec3, DVec3)>,
     solids: Vec<(f64, usize, f64, f64)>,

@@ -1,0 +1,491 @@
+//! Terrains as solids: an object whose triangles cover a rectangle of the
+//! ground once each, a continuous height field `z = h(x, y)` over it (a
+//! city's hills), hides what lies below its surface from viewpoints above
+//! it, as a closed solid hides its inside.
+//!
+//! **Why.** Over the rectangle `R`, every point `(x, y)` lies under exactly
+//! one triangle of the surface (below), so `h` is single-valued and
+//! continuous there. A segment whose ends project into `R` (convex, so the
+//! whole segment does) and which starts above the surface and ends below
+//! it meets the surface between them: `z - h` changes sign along it. The
+//! tracer, watertight on the welded mesh, hits a triangle there. The
+//! tracer's f32 rounding moves a ray by up to the slack `s` (see
+//! [`super::tracer_slack`]), which moves a point's height above the
+//! surface by at most `s (1 + g)`, `g` the steepest slope of a triangle:
+//! with both ends farther than that from the surface, on their sides,
+//! the rounded ray crosses it too. So a Depth Map may hold a terrain's cut
+//! on its plane at Depth 0, where the plane lies below the surface by that
+//! margin, for cells above the surface by it: a ray from the cell through
+//! such a pixel has hit the terrain before the plane.
+//!
+//! **Covering once.** The object's triangles are welded by their corners'
+//! bits; each must have a positive area seen from above (all of them, or
+//! all negative: a surface facing down), and no directed edge may occur
+//! twice. The edges whose reverse is missing bound the surface; none may
+//! meet `R`. Then over `R` the number of triangles above a point is the
+//! winding number of that boundary around it (all triangles count with
+//! the same sign), constant on `R`, and it must be one at `R`'s centre.
+//! `R` starts as the surface's box and each side is pulled in past the
+//! boundary edges nearest it (a terrain cut from a slightly rotated grid
+//! has a ragged rim).
+//!
+//! **Heights.** A grid over `R` holds, per cell, the lowest and highest
+//! corner of the triangles whose boxes meet the cell grown by one cell a
+//! side: the surface over any part of a cell lies between them.
+
+use glam::{DVec2, DVec3, Vec3};
+use std::collections::HashMap;
+
+use super::oracle_project::Frame;
+
+/// The fewest triangles an object needs to be tried as a terrain (a
+/// ground plane of two triangles hides only what is under the ground).
+const MIN_TRIANGLES: usize = 2;
+
+/// The steepest slope a terrain's triangle may have (a cliff's nearly
+/// vertical faces make the margin grow past any use).
+const MAX_SLOPE: f64 = 100.0;
+
+/// The most grid cells along a side of a terrain's height grid.
+const MAX_GRID: usize = 1024;
+
+/// A terrain: a height field over the rectangle `[lo, hi]` of the ground.
+#[derive(Debug, Clone)]
+pub struct Terrain {
+    /// The object whose surface it is.
+    pub object: u32,
+    /// The rectangle (x, y) over which the surface covers the ground once.
+    pub lo: DVec2,
+    /// See `lo`.
+    pub hi: DVec2,
+    /// The lowest and highest height of the surface over `R`.
+    pub zmin: f64,
+    /// See `zmin`.
+    pub zmax: f64,
+    /// The steepest slope of a triangle over `R`.
+    slope: f64,
+    /// The height grid: `n.x` by `n.y` cells of `step` from `lo`.
+    n: [usize; 2],
+    step: DVec2,
+    /// Per grid cell, a height at or below the surface anywhere over it
+    /// (row by row, `y` slowest).
+    low: Vec<f64>,
+    /// Per grid cell, the triangles whose boxes meet it (`first[k]..first[k
+    /// + 1]` of `listed`), for the exact highest point over a rectangle.
+    first: Vec<u32>,
+    listed: Vec<u32>,
+    /// The triangles over `R`, their corners.
+    triangles: Vec<[DVec3; 3]>,
+}
+
+impl Terrain {
+    /// The object's triangles as a terrain, when they cover a rectangle of
+    /// the ground once (see the module's doc); `None` otherwise.
+    pub fn detect(object: u32, triangles: &[[Vec3; 3]]) -> Option<Terrain> {
+        if triangles.len() < MIN_TRIANGLES {
+            return None;
+        }
+        // Weld by the corners' bits (0.0 and -0.0 alike).
+        let mut index: HashMap<[u32; 3], u32> = HashMap::new();
+        let mut vertices: Vec<DVec3> = Vec::new();
+        let mut tris: Vec<[u32; 3]> = Vec::with_capacity(triangles.len());
+        for t in triangles {
+            let ids = t.map(|v| {
+                let key = v.to_array().map(|c| if c == 0.0 { 0 } else { c.to_bits() });
+                *index.entry(key).or_insert_with(|| {
+                    vertices.push(v.as_dvec3());
+                    (vertices.len() - 1) as u32
+                })
+            });
+            tris.push(ids);
+        }
+        if vertices.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        // One orientation seen from above, no triangle on edge.
+        let area = |t: &[u32; 3]| {
+            let [a, b, c] = t.map(|i| vertices[i as usize].truncate());
+            (b - a).perp_dot(c - a)
+        };
+        let sign = area(&tris[0]).signum();
+        if tris.iter().any(|t| area(t) * sign <= 0.0) {
+            return None;
+        }
+        // Directed edges, each once; those without their reverse bound
+        // the surface.
+        let mut edges: HashMap<(u32, u32), ()> = HashMap::with_capacity(3 * tris.len());
+        for t in &tris {
+            for k in 0..3 {
+                if edges.insert((t[k], t[(k + 1) % 3]), ()).is_some() {
+                    return None;
+                }
+            }
+        }
+        let boundary: Vec<[DVec2; 2]> = edges
+            .keys()
+            .filter(|&&(a, b)| !edges.contains_key(&(b, a)))
+            .map(|&(a, b)| [a, b].map(|i| vertices[i as usize].truncate()))
+            .collect();
+        // The rectangle: the box, each side pulled in past the boundary
+        // edges nearest it.
+        let (mut lo, mut hi) = vertices
+            .iter()
+            .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(a, b), v| {
+                (a.min(v.truncate()), b.max(v.truncate()))
+            });
+        let full = (hi - lo).x * (hi - lo).y;
+        if full <= 0.0 || !full.is_finite() {
+            return None;
+        }
+        for _ in 0..8 {
+            let mut moved = false;
+            for &[a, b] in &boundary {
+                if !segment_meets_rect(a, b, lo, hi) {
+                    continue;
+                }
+                let (emin, emax) = (a.min(b), a.max(b));
+                // Each side the edge's box reaches; pull in the nearest.
+                let gaps = [emin.x - lo.x, hi.x - emax.x, emin.y - lo.y, hi.y - emax.y];
+                let side = (0..4).min_by(|&i, &j| gaps[i].total_cmp(&gaps[j])).unwrap();
+                let span = (hi - lo) * 1e-9;
+                match side {
+                    0 => lo.x = emax.x + span.x,
+                    1 => hi.x = emin.x - span.x,
+                    2 => lo.y = emax.y + span.y,
+                    _ => hi.y = emin.y - span.y,
+                }
+                moved = true;
+            }
+            if !moved {
+                break;
+            }
+            if !(hi.x > lo.x && hi.y > lo.y) {
+                return None;
+            }
+        }
+        let size = hi - lo;
+        if boundary
+            .iter()
+            .any(|&[a, b]| segment_meets_rect(a, b, lo, hi))
+            || size.x * size.y < 0.25 * full
+        {
+            return None;
+        }
+        // Covered once: the boundary winds once around the centre.
+        if winding(&boundary, 0.5 * (lo + hi)) != sign as i64 {
+            return None;
+        }
+        // The triangles over the rectangle: slope and heights.
+        let meets = |t: &[u32; 3]| {
+            let p = t.map(|i| vertices[i as usize]);
+            let (a, b) = (p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]));
+            a.x <= hi.x && b.x >= lo.x && a.y <= hi.y && b.y >= lo.y
+        };
+        let over: Vec<&[u32; 3]> = tris.iter().filter(|t| meets(t)).collect();
+        let mut slope: f64 = 0.0;
+        for t in &over {
+            let [a, b, c] = t.map(|i| vertices[i as usize]);
+            let n = (b - a).cross(c - a);
+            slope = slope.max(n.truncate().length() / n.z.abs());
+        }
+        if slope > MAX_SLOPE {
+            return None;
+        }
+        // (The heights' grid: about two cells a side per triangle.)
+        let side = (2 * (over.len() as f64).sqrt().ceil() as usize).clamp(1, MAX_GRID);
+        let cells = [side, side];
+        let step = size / DVec2::new(side as f64, side as f64);
+        let triangles: Vec<[DVec3; 3]> = over
+            .iter()
+            .map(|t| t.map(|i| vertices[i as usize]))
+            .collect();
+        // Each triangle's box, grown by a billionth of `R` (past the
+        // rounding of the spans below), in grid cells.
+        let grow = 1e-9 * (size.x + size.y);
+        let span = |x: f64, axis: usize| {
+            ((x - lo[axis]) / step[axis])
+                .floor()
+                .clamp(0.0, cells[axis] as f64 - 1.0) as usize
+        };
+        let ranges: Vec<[usize; 4]> = triangles
+            .iter()
+            .map(|p| {
+                let (a, b) = (p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]));
+                [
+                    span(a.x - grow, 0),
+                    span(b.x + grow, 0),
+                    span(a.y - grow, 1),
+                    span(b.y + grow, 1),
+                ]
+            })
+            .collect();
+        let mut first = vec![0u32; side * side + 1];
+        for &[i0, i1, j0, j1] in &ranges {
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    first[j * side + i + 1] += 1;
+                }
+            }
+        }
+        for k in 0..side * side {
+            first[k + 1] += first[k];
+        }
+        let mut listed = vec![0u32; first[side * side] as usize];
+        let mut fill = first.clone();
+        let mut low = vec![f64::INFINITY; side * side];
+        for (t, &[i0, i1, j0, j1]) in ranges.iter().enumerate() {
+            let z = triangles[t].map(|p| p.z);
+            let zlo = z[0].min(z[1]).min(z[2]);
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    let k = j * side + i;
+                    listed[fill[k] as usize] = t as u32;
+                    fill[k] += 1;
+                    low[k] = low[k].min(zlo);
+                }
+            }
+        }
+        let (zmin, zmax) = triangles
+            .iter()
+            .flatten()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+                (a.min(p.z), b.max(p.z))
+            });
+        // Every cell is under some triangle (the surface covers `R`).
+        if low.iter().any(|z| !z.is_finite()) {
+            return None;
+        }
+        Some(Terrain {
+            object,
+            lo,
+            hi,
+            zmin,
+            zmax,
+            slope,
+            n: cells,
+            step,
+            low,
+            first,
+            listed,
+            triangles,
+        })
+    }
+
+    /// How far from the surface a point must be, along `z`, for the
+    /// tracer's rounding (`slack`) to keep it on its side.
+    pub fn margin(&self, slack: f64) -> f64 {
+        2.0 * slack * (1.0 + self.slope)
+    }
+
+    /// The grid cells over the ground rectangle `[a, b]` (within `R`).
+    fn cells(&self, a: DVec2, b: DVec2) -> impl Iterator<Item = usize> + '_ {
+        let at = |x: f64, axis: usize| {
+            ((x - self.lo[axis]) / self.step[axis])
+                .floor()
+                .clamp(0.0, self.n[axis] as f64 - 1.0) as usize
+        };
+        let (i0, i1, j0, j1) = (at(a.x, 0), at(b.x, 0), at(a.y, 1), at(b.y, 1));
+        (j0..=j1).flat_map(move |j| (i0..=i1).map(move |i| j * self.n[0] + i))
+    }
+
+    /// A height at or below the surface over the ground rectangle `[a, b]`
+    /// (within `R`).
+    fn low_over(&self, a: DVec2, b: DVec2) -> f64 {
+        self.cells(a, b)
+            .map(|k| self.low[k])
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The highest point of the surface over the ground rectangle `[a, b]`
+    /// (within `R`): of each triangle that may lie over it, the highest
+    /// corner of its part over the rectangle.
+    fn highest(&self, a: DVec2, b: DVec2) -> f64 {
+        let mut top = f64::NEG_INFINITY;
+        let mut poly: Vec<DVec3> = Vec::with_capacity(8);
+        let mut next: Vec<DVec3> = Vec::with_capacity(8);
+        for k in self.cells(a, b) {
+            for &t in &self.listed[self.first[k] as usize..self.first[k + 1] as usize] {
+                poly.clear();
+                poly.extend_from_slice(&self.triangles[t as usize]);
+                // Clipped by x >= a.x, x <= b.x, y >= a.y, y <= b.y.
+                for (axis, bound, keep_above) in [
+                    (0, a.x, true),
+                    (0, b.x, false),
+                    (1, a.y, true),
+                    (1, b.y, false),
+                ] {
+                    next.clear();
+                    let inside = |p: &DVec3| {
+                        if keep_above {
+                            p[axis] >= bound
+                        } else {
+                            p[axis] <= bound
+                        }
+                    };
+                    for i in 0..poly.len() {
+                        let (p, q) = (poly[i], poly[(i + 1) % poly.len()]);
+                        if inside(&p) {
+                            next.push(p);
+                        }
+                        if inside(&p) != inside(&q) {
+                            let t = (bound - p[axis]) / (q[axis] - p[axis]);
+                            next.push(p + (q - p) * t);
+                        }
+                    }
+                    std::mem::swap(&mut poly, &mut next);
+                    if poly.is_empty() {
+                        break;
+                    }
+                }
+                for p in &poly {
+                    top = top.max(p.z);
+                }
+            }
+        }
+        top
+    }
+
+    /// Whether the ground rectangle `[a, b]` lies within `R` by `pad`.
+    fn within(&self, a: DVec2, b: DVec2, pad: f64) -> bool {
+        a.cmpge(self.lo + pad).all() && b.cmple(self.hi - pad).all()
+    }
+
+    /// Whether the cell `[cmin, cmax]` may use the terrain: over `R` and
+    /// above the surface, both by the slack's margin.
+    pub fn usable(&self, cmin: DVec3, cmax: DVec3, slack: f64) -> bool {
+        let m = self.margin(slack);
+        let (a, b) = (cmin.truncate() - slack, cmax.truncate() + slack);
+        self.within(a, b, slack) && self.highest(a, b) + m < cmin.z
+    }
+
+    /// Draws the terrain's cut by the plane `w = wp` of `frame` into the
+    /// `n` x `n` level-0 map over the plane rectangle `rect`, at Depth 0:
+    /// the pixels over `R` (by the slack) wholly below the surface by the
+    /// margin. Returns how many; only for cells it is
+    /// [`Terrain::usable`] from.
+    pub fn draw(
+        &self,
+        frame: Frame,
+        wp: f64,
+        rect: (DVec2, DVec2),
+        n: usize,
+        slack: f64,
+        level0: &mut [f64],
+    ) -> usize {
+        let (rmin, rmax) = rect;
+        let pixel = (rmax - rmin) / n as f64;
+        if !(pixel.x > 0.0 && pixel.y > 0.0) {
+            return 0;
+        }
+        let m = self.margin(slack);
+        let at = frame.world(DVec3::new(0.0, 0.0, wp))[frame.axis];
+        // Pixel `k`'s span along local `u` (k < n) or `v`.
+        let span = |k: usize, axis: usize| {
+            (
+                rmin[axis] + k as f64 * pixel[axis],
+                rmin[axis] + (k + 1) as f64 * pixel[axis],
+            )
+        };
+        let mut count = 0;
+        match frame.axis {
+            // A level plane: local u = x, v = y; a pixel is below the
+            // surface where the surface over it is above the plane.
+            2 => {
+                if at + m >= self.zmax {
+                    return 0;
+                }
+                for j in 0..n {
+                    let (y0, y1) = span(j, 1);
+                    for i in 0..n {
+                        let (x0, x1) = span(i, 0);
+                        let (a, b) = (DVec2::new(x0, y0), DVec2::new(x1, y1));
+                        if self.within(a, b, slack) && self.low_over(a, b) > at + m {
+                            let d = &mut level0[j * n + i];
+                            if *d > 0.0 {
+                                *d = 0.0;
+                            }
+                            count += 1;
+                        }
+                    }
+                }
+            }
+            // An upright plane x = at (local u = y, v = z) or y = at
+            // (local u = z, v = x): per column of the horizontal axis, the
+            // pixels wholly below the lowest surface over it.
+            axis => {
+                let (h, z) = if axis == 0 { (0, 1) } else { (1, 0) };
+                let across = if axis == 0 { 0 } else { 1 };
+                if !(at >= self.lo[across] + slack && at <= self.hi[across] - slack) {
+                    return 0;
+                }
+                for c in 0..n {
+                    let (g0, g1) = span(c, h);
+                    let (a, b) = if axis == 0 {
+                        (DVec2::new(at, g0), DVec2::new(at, g1))
+                    } else {
+                        (DVec2::new(g0, at), DVec2::new(g1, at))
+                    };
+                    if !self.within(a, b, slack) {
+                        continue;
+                    }
+                    let top = self.low_over(a, b) - m;
+                    for r in 0..n {
+                        let (_, z1) = span(r, z);
+                        if z1 < top {
+                            let (i, j) = if axis == 0 { (c, r) } else { (r, c) };
+                            let d = &mut level0[j * n + i];
+                            if *d > 0.0 {
+                                *d = 0.0;
+                            }
+                            count += 1;
+                        }
+                    }
+                }
+            }
+        }
+        count
+    }
+}
+
+/// Whether the segment `[a, b]` meets the closed rectangle `[lo, hi]`.
+fn segment_meets_rect(a: DVec2, b: DVec2, lo: DVec2, hi: DVec2) -> bool {
+    // Liang-Barsky clipping of the segment to the rectangle.
+    let d = b - a;
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for axis in 0..2 {
+        if d[axis] == 0.0 {
+            if a[axis] < lo[axis] || a[axis] > hi[axis] {
+                return false;
+            }
+            continue;
+        }
+        let (mut ta, mut tb) = (
+            (lo[axis] - a[axis]) / d[axis],
+            (hi[axis] - a[axis]) / d[axis],
+        );
+        if ta > tb {
+            std::mem::swap(&mut ta, &mut tb);
+        }
+        t0 = t0.max(ta);
+        t1 = t1.min(tb);
+        if t0 > t1 {
+            return false;
+        }
+    }
+    true
+}
+
+/// The winding number of the directed edges `boundary` around `p` (not on
+/// any of them): the signed crossings of the ray from `p` along +x.
+fn winding(boundary: &[[DVec2; 2]], p: DVec2) -> i64 {
+    let mut w = 0;
+    for &[a, b] in boundary {
+        if (a.y <= p.y) != (b.y <= p.y) {
+            let x = a.x + (p.y - a.y) * (b.x - a.x) / (b.y - a.y);
+            if x > p.x {
+                w += if b.y > a.y { 1 } else { -1 };
+            }
+        }
+    }
+    w
+}
