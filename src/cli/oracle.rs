@@ -488,7 +488,7 @@ pub fn run(args: &OracleArgs) -> Result<()> {
     let c = oracle.occluder_counts();
     writeln!(
         out,
-        "{}: {} objects, {} occluders ({} convex solids, {} convex shells, {} polygons, {} triangles), {} objects to slice",
+        "{}: {} objects, {} occluders ({} convex solids, {} convex shells, {} polygons, {} triangles), {} objects to slice, {} terrains",
         json.common.scene,
         json.common.objects,
         json.common.occluders,
@@ -496,7 +496,8 @@ pub fn run(args: &OracleArgs) -> Result<()> {
         c.shells,
         c.polygons,
         c.triangles,
-        oracle.solid_count()
+        oracle.solid_count(),
+        oracle.terrain_count()
     )?;
     writeln!(
         out,

@@ -63,7 +63,8 @@
 //! 3.3), `oracle_patches.rs` (axis-aligned patches), `oracle_sweep.rs`
 //! (reprojection and the sweep), `oracle_gpu.rs` with `oracle_gpu.wgsl` (the GPU rasteriser),
 //! `oracle_raster.rs` (the GPU-or-CPU choice), `oracle_sealed.rs` (the
-//! free space), `oracle_check.rs` (the cross-check).
+//! free space), `oracle_terrain.rs` (height fields as solids),
+//! `oracle_check.rs` (the cross-check).
 #![cfg_attr(not(feature = "gpu"), doc = "\n\n[`GpuRasteriser`]: crate#features")]
 
 mod oracle_check;
@@ -457,6 +458,12 @@ impl<'a> Oracle<'a> {
     /// the bottom).
     pub fn solid_count(&self) -> usize {
         self.solids.len()
+    }
+
+    /// The number of terrains: objects covering a rectangle of the ground
+    /// once, used as solids from cells above them.
+    pub fn terrain_count(&self) -> usize {
+        self.terrains.len()
     }
 
     /// The grid of the free space between the solids (all zero when
@@ -1066,6 +1073,12 @@ impl<'a> Oracle<'a> {
                 .take(self.params.plane_candidates / 2)
                 .map(|s| 0.5 * (s.2 + s.3)),
         );
+        // And at the crests of the terrains' ground in front of the face.
+        for s in &solids {
+            if let Some(t) = s.1.checked_sub(self.solids.len()) {
+                positions.extend(self.terrains[t].crests(frame, cmin, cmax, 2));
+            }
+        }
         positions.sort_by(f64::total_cmp);
         positions.dedup();
         if positions.is_empty() {

@@ -358,6 +358,45 @@ impl Terrain {
         self.within(a, b, slack) && self.highest(a, b) + m < cmin.z
     }
 
+    /// Where planes of an upright `frame` (`x` or `y`) in front of the cell
+    /// `[cmin, cmax]` would best hold the terrain's cut: the `count`
+    /// positions (`w` in the frame) of 32, spaced geometrically from the
+    /// cell to the far side of `R`, where the ground across the cell's
+    /// width rises highest as seen from the cell's top (its horizon).
+    /// None for level frames.
+    pub fn crests(&self, frame: Frame, cmin: DVec3, cmax: DVec3, count: usize) -> Vec<f64> {
+        const SAMPLES: usize = 32;
+        if frame.axis == 2 {
+            return Vec::new();
+        }
+        let (lmin, lmax) = frame.local_box(cmin, cmax);
+        let (a, b) = frame.local_box(self.lo.extend(self.zmin), self.hi.extend(self.zmax));
+        let near = 0.5 * (lmax.z - lmin.z).max(1e-6);
+        let far = b.z - lmax.z;
+        if a.z > lmax.z || far <= near {
+            return Vec::new();
+        }
+        let across = 1 - frame.axis;
+        let (c0, c1) = (cmin[across], cmax[across]);
+        let mut found: Vec<(f64, f64)> = (1..=SAMPLES)
+            .filter_map(|k| {
+                let d = near * (far / near).powf(k as f64 / SAMPLES as f64);
+                let wp = lmax.z + d;
+                let at = frame.world(DVec3::new(0.0, 0.0, wp))[frame.axis];
+                let mut lo = DVec2::ZERO;
+                let mut hi = DVec2::ZERO;
+                lo[frame.axis] = at;
+                hi[frame.axis] = at;
+                lo[across] = c0;
+                hi[across] = c1;
+                self.within(lo, hi, 0.0)
+                    .then(|| ((self.low_over(lo, hi) - cmax.z) / d, wp))
+            })
+            .collect();
+        found.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.total_cmp(&y.1)));
+        found.iter().take(count).map(|f| f.1).collect()
+    }
+
     /// Draws the terrain's cut by the plane `w = wp` of `frame` into the
     /// `n` x `n` level-0 map over the plane rectangle `rect`, at Depth 0:
     /// the pixels over `R` (by the slack) wholly below the surface by the
@@ -488,4 +527,204 @@ fn winding(boundary: &[[DVec2; 2]], p: DVec2) -> i64 {
         }
     }
     w
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The height of the hill at `(x, y)`.
+    fn hill(x: f32, y: f32) -> f32 {
+        8.0 * (-((x - 20.0).powi(2) + (y - 20.0).powi(2)) / 80.0).exp()
+    }
+
+    /// A grid of `k` x `k` squares over `[0, 40]^2`, two triangles each
+    /// (counter-clockwise from above), turned by `turn` radians about the
+    /// centre and with heights from `hill`; its rim is ragged once turned.
+    fn grid(k: usize, turn: f32) -> Vec<[Vec3; 3]> {
+        let (s, c) = turn.sin_cos();
+        let at = |i: usize, j: usize| {
+            let (x, y) = (40.0 * i as f32 / k as f32, 40.0 * j as f32 / k as f32);
+            let (u, v) = (x - 20.0, y - 20.0);
+            let (x, y) = (20.0 + c * u - s * v, 20.0 + s * u + c * v);
+            Vec3::new(x, y, hill(x, y))
+        };
+        let mut out = Vec::new();
+        for j in 0..k {
+            for i in 0..k {
+                let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+                out.push([a, b, c]);
+                out.push([a, c, d]);
+            }
+        }
+        out
+    }
+
+    /// The surface's height at `p` (its triangle over `p`, by brute force).
+    fn height(tris: &[[Vec3; 3]], p: DVec2) -> Option<f64> {
+        tris.iter().find_map(|t| {
+            let [a, b, c] = t.map(|v| v.as_dvec3());
+            let (e, f, q) = ((b - a).truncate(), (c - a).truncate(), p - a.truncate());
+            let d = e.perp_dot(f);
+            let (u, v) = (q.perp_dot(f) / d, e.perp_dot(q) / d);
+            (u >= -1e-12 && v >= -1e-12 && u + v <= 1.0 + 1e-12)
+                .then_some(a.z + u * (b.z - a.z) + v * (c.z - a.z))
+        })
+    }
+
+    #[test]
+    fn a_hill_on_a_turned_grid_is_a_terrain_within_its_ragged_rim() {
+        for turn in [0.0f32, 0.01, -0.3] {
+            let tris = grid(24, turn);
+            let t = Terrain::detect(7, &tris).expect("a terrain");
+            assert_eq!(t.object, 7);
+            // R lies within the surface's cover: every point of it (a
+            // lattice) is under a triangle.
+            for i in 0..=20 {
+                for j in 0..=20 {
+                    let p = t.lo + (t.hi - t.lo) * DVec2::new(i as f64, j as f64) / 20.0;
+                    assert!(height(&tris, p).is_some(), "{turn}: {p} not covered");
+                }
+            }
+            let area = (t.hi - t.lo).x * (t.hi - t.lo).y;
+            assert!(
+                area > 0.8 * 1600.0 * (1.0 - 2.0 * turn.abs() as f64),
+                "{turn}: {area}"
+            );
+            assert!(t.zmax > 7.9 && t.zmin < 0.1);
+        }
+        // Facing down (every triangle reversed) is one too.
+        let down: Vec<[Vec3; 3]> = grid(8, 0.1).iter().map(|t| [t[0], t[2], t[1]]).collect();
+        assert!(Terrain::detect(0, &down).is_some());
+    }
+
+    #[test]
+    fn what_is_not_a_height_field_is_no_terrain() {
+        let tris = grid(10, 0.0);
+        // One triangle turned over: two layers over its part.
+        let mut flipped = tris.clone();
+        flipped[57] = [flipped[57][0], flipped[57][2], flipped[57][1]];
+        assert!(Terrain::detect(0, &flipped).is_none());
+        // A second layer above: the rim winds twice around the centre.
+        let mut doubled = tris.clone();
+        doubled.extend(tris.iter().map(|t| t.map(|v| v + Vec3::new(0.0, 0.0, 5.0))));
+        assert!(Terrain::detect(0, &doubled).is_none());
+        // A triangle twice: a directed edge twice.
+        let mut twice = tris.clone();
+        twice.push(tris[3]);
+        assert!(Terrain::detect(0, &twice).is_none());
+        // A box: upright faces cover no ground.
+        let (a, b) = (Vec3::ZERO, Vec3::ONE);
+        let c = |i: usize| {
+            Vec3::new(
+                [a.x, b.x][i & 1],
+                [a.y, b.y][(i >> 1) & 1],
+                [a.z, b.z][i >> 2],
+            )
+        };
+        let faces = [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ];
+        let cube: Vec<[Vec3; 3]> = faces
+            .iter()
+            .flat_map(|f| [[c(f[0]), c(f[1]), c(f[2])], [c(f[0]), c(f[2]), c(f[3])]])
+            .collect();
+        assert!(Terrain::detect(0, &cube).is_none());
+        // A non-finite corner.
+        let mut nan = tris.clone();
+        nan[0][0].z = f32::NAN;
+        assert!(Terrain::detect(0, &nan).is_none());
+    }
+
+    #[test]
+    fn a_hole_is_left_outside_the_rectangle() {
+        let mut tris = grid(20, 0.0);
+        // The two triangles of the square at (14, 9) removed.
+        let k = 2 * (9 * 20 + 14);
+        tris.drain(k..k + 2);
+        let t = Terrain::detect(0, &tris).expect("a terrain beside the hole");
+        let (hole_lo, hole_hi) = (DVec2::new(28.0, 18.0), DVec2::new(30.0, 20.0));
+        assert!(
+            t.hi.x <= hole_lo.x
+                || t.lo.x >= hole_hi.x
+                || t.hi.y <= hole_lo.y
+                || t.lo.y >= hole_hi.y,
+            "{} {}",
+            t.lo,
+            t.hi
+        );
+    }
+
+    /// Every pixel `draw` fills lies below the surface (points of it, by
+    /// brute force), over every frame and plane of a sweep through the hill,
+    /// and a cell is usable only above the surface.
+    #[test]
+    fn the_cuts_lie_below_the_surface() {
+        let tris = grid(16, 0.2);
+        let t = Terrain::detect(0, &tris).unwrap();
+        let slack = 1e-5;
+        let n = 48;
+        let rect = (DVec2::new(-5.0, -5.0), DVec2::new(45.0, 45.0));
+        let mut filled = 0;
+        for frame in Frame::ALL {
+            for k in 0..12 {
+                let at = -2.0 + 12.0 * k as f64 / 11.0;
+                let at = if frame.axis == 2 { at } else { 3.0 * at + 5.0 };
+                let wp = frame.local(DVec3::splat(at)).z;
+                let mut map = vec![f64::INFINITY; n * n];
+                filled += t.draw(frame, wp, rect, n, slack, &mut map);
+                let pixel = (rect.1 - rect.0) / n as f64;
+                for j in 0..n {
+                    for i in 0..n {
+                        if map[j * n + i] != 0.0 {
+                            continue;
+                        }
+                        for (fu, fv) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (0.5, 0.5)]
+                        {
+                            let l = DVec3::new(
+                                rect.0.x + (i as f64 + fu) * pixel.x,
+                                rect.0.y + (j as f64 + fv) * pixel.y,
+                                wp,
+                            );
+                            let p = frame.world(l);
+                            let h = height(&tris, p.truncate()).expect("over the surface");
+                            assert!(p.z < h, "{} at {at}: {p} above {h}", frame.name());
+                        }
+                    }
+                }
+            }
+        }
+        assert!(filled > 1000, "{filled}");
+        // Usable: above the surface over the whole cell only.
+        // The mesh's highest point over the cell's ground, by a lattice
+        // 2.5 cm apart (on triangles 2.5 m wide, of slopes below one).
+        let mut hmax = f64::NEG_INFINITY;
+        for i in 0..=40 {
+            for j in 0..=40 {
+                let p = DVec2::new(11.5 + i as f64 / 40.0, 19.5 + j as f64 / 40.0);
+                hmax = hmax.max(height(&tris, p).unwrap());
+            }
+        }
+        let (a, b) = (DVec2::new(11.5, 19.5), DVec2::new(12.5, 20.5));
+        assert!(t.usable(a.extend(hmax + 0.05), b.extend(hmax + 1.0), slack));
+        assert!(!t.usable(a.extend(hmax - 0.05), b.extend(hmax + 1.0), slack));
+        // On the hill's flank, a cell whose lower corner is above the
+        // surface there but whose uphill side dips into it.
+        let (a, b) = (
+            DVec3::new(14.0, 14.0, hill(14.0, 14.0) as f64 + 0.1),
+            DVec3::new(18.0, 18.0, 9.0),
+        );
+        assert!(!t.usable(a, b, slack));
+        // Beyond the rectangle.
+        assert!(!t.usable(
+            DVec3::new(-3.0, 5.0, 10.0),
+            DVec3::new(-1.0, 6.0, 11.0),
+            slack
+        ));
+    }
 }
