@@ -68,8 +68,9 @@ pub struct Terrain {
     n: [usize; 2],
     step: DVec2,
     /// Per grid cell, a height at or below the surface anywhere over it
-    /// (row by row, `y` slowest).
-    low: Vec<f64>,
+    /// (row by row, `y` slowest); then the same over blocks of 2 x 2, 4 x
+    /// 4, ... cells (`lows[k]` for blocks of `2^k`, `lows[0]` the grid's).
+    lows: Vec<Vec<f64>>,
     /// Per grid cell, the triangles whose boxes meet it (`first[k]..first[k
     /// + 1]` of `listed`), for the exact highest point over a rectangle.
     first: Vec<u32>,
@@ -264,7 +265,7 @@ impl Terrain {
             slope,
             n: cells,
             step,
-            low,
+            lows: min_levels(low, side),
             first,
             listed,
             triangles,
@@ -289,11 +290,29 @@ impl Terrain {
     }
 
     /// A height at or below the surface over the ground rectangle `[a, b]`
-    /// (within `R`).
+    /// (within `R`): the lowest of the blocks over it, of the level where
+    /// at most three span it a side.
     fn low_over(&self, a: DVec2, b: DVec2) -> f64 {
-        self.cells(a, b)
-            .map(|k| self.low[k])
-            .fold(f64::INFINITY, f64::min)
+        let at = |x: f64, axis: usize| {
+            ((x - self.lo[axis]) / self.step[axis])
+                .floor()
+                .clamp(0.0, self.n[axis] as f64 - 1.0) as usize
+        };
+        let (mut i0, mut i1, mut j0, mut j1) = (at(a.x, 0), at(b.x, 0), at(a.y, 1), at(b.y, 1));
+        let mut level = 0;
+        while (i1 - i0).max(j1 - j0) > 2 && level + 1 < self.lows.len() {
+            (i0, i1, j0, j1) = (i0 / 2, i1 / 2, j0 / 2, j1 / 2);
+            level += 1;
+        }
+        let side = self.n[0].div_ceil(1 << level);
+        let low = &self.lows[level];
+        let mut out = f64::INFINITY;
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                out = out.min(low[j * side + i]);
+            }
+        }
+        out
     }
 
     /// The highest point of the surface over the ground rectangle `[a, b]`
@@ -486,6 +505,28 @@ impl Terrain {
     }
 }
 
+/// The levels of lowest heights over a `side` x `side` grid: the grid's,
+/// then each block of 2 x 2 of the last level's (fewer at odd edges),
+/// down to one.
+fn min_levels(grid: Vec<f64>, side: usize) -> Vec<Vec<f64>> {
+    let mut levels = vec![grid];
+    let mut n = side;
+    while n > 1 {
+        let m = n.div_ceil(2);
+        let last = levels.last().expect("a level");
+        let mut next = vec![f64::INFINITY; m * m];
+        for j in 0..n {
+            for i in 0..n {
+                let k = (j / 2) * m + i / 2;
+                next[k] = next[k].min(last[j * n + i]);
+            }
+        }
+        levels.push(next);
+        n = m;
+    }
+    levels
+}
+
 /// Whether the segment `[a, b]` meets the closed rectangle `[lo, hi]`.
 fn segment_meets_rect(a: DVec2, b: DVec2, lo: DVec2, hi: DVec2) -> bool {
     // Liang-Barsky clipping of the segment to the rectangle.
@@ -668,10 +709,10 @@ mod tests {
         let tris = grid(16, 0.2);
         let t = Terrain::detect(0, &tris).unwrap();
         let slack = 1e-5;
-        let n = 48;
         let rect = (DVec2::new(-5.0, -5.0), DVec2::new(45.0, 45.0));
         let mut filled = 0;
-        for frame in Frame::ALL {
+        // (Pixels of 8 m span about ten grid cells: the coarser levels.)
+        for (n, frame) in [48, 6].into_iter().flat_map(|n| Frame::ALL.map(|f| (n, f))) {
             for k in 0..12 {
                 let at = -2.0 + 12.0 * k as f64 / 11.0;
                 let at = if frame.axis == 2 { at } else { 3.0 * at + 5.0 };
