@@ -25,13 +25,23 @@
 //! meet `R`. Then over `R` the number of triangles above a point is the
 //! winding number of that boundary around it (all triangles count with
 //! the same sign), constant on `R`, and it must be one at `R`'s centre.
-//! `R` starts as the surface's box and each side is pulled in past the
-//! boundary edges nearest it (a terrain cut from a slightly rotated grid
-//! has a ragged rim).
+//! `R` is the largest rectangle of the surface's box's shape about its
+//! centre that no boundary edge meets (a terrain cut from a slightly
+//! rotated grid has a ragged rim; a hole shrinks `R` to clear it), and it
+//! must keep a quarter of the box; it depends on no order (an earlier
+//! greedy pull-in did, and a hash map's order differs from run to run, a
+//! review found).
+//! The area signs are exact (differences of f32 corners are exact in
+//! f64); the edge-against-`R` and winding tests are rounded, which an
+//! edge counting as meeting `R` within a billionth of its size, and the
+//! cells' and pixels' distance from `R`'s sides (the slack) absorb.
 //!
-//! **Heights.** A grid over `R` holds, per cell, the lowest and highest
-//! corner of the triangles whose boxes meet the cell grown by one cell a
-//! side: the surface over any part of a cell lies between them.
+//! **Heights.** A grid over `R` holds, per cell, the lowest corner of
+//! the triangles whose boxes meet the cell (grown by a billionth of `R`,
+//! past the rounding of finding the cells), and in levels of 2 x 2
+//! blocks above it the lowest of each block: the surface over any part
+//! of a cell or block is no lower. The highest point over a cell's ground
+//! is found exactly, by clipping the triangles listed in its grid cells.
 
 use glam::{DVec2, DVec3, Vec3};
 use std::collections::HashMap;
@@ -122,9 +132,17 @@ impl Terrain {
                 }
             }
         }
-        let boundary: Vec<[DVec2; 2]> = edges
+        // (In the order of their corners' indices, which follow the
+        // triangles': the pull-in below depends on the order, and a hash
+        // map's differs from run to run, a review found.)
+        let mut pairs: Vec<(u32, u32)> = edges
             .keys()
             .filter(|&&(a, b)| !edges.contains_key(&(b, a)))
+            .copied()
+            .collect();
+        pairs.sort_unstable();
+        let boundary: Vec<[DVec2; 2]> = pairs
+            .iter()
             .map(|&(a, b)| [a, b].map(|i| vertices[i as usize].truncate()))
             .collect();
         // The rectangle: the box, each side pulled in past the boundary
@@ -138,38 +156,29 @@ impl Terrain {
         if full <= 0.0 || !full.is_finite() {
             return None;
         }
-        for _ in 0..8 {
-            let mut moved = false;
-            for &[a, b] in &boundary {
-                if !segment_meets_rect(a, b, lo, hi) {
-                    continue;
-                }
-                let (emin, emax) = (a.min(b), a.max(b));
-                // Each side the edge's box reaches; pull in the nearest.
-                let gaps = [emin.x - lo.x, hi.x - emax.x, emin.y - lo.y, hi.y - emax.y];
-                let side = (0..4).min_by(|&i, &j| gaps[i].total_cmp(&gaps[j])).unwrap();
-                let span = (hi - lo) * 1e-9;
-                match side {
-                    0 => lo.x = emax.x + span.x,
-                    1 => hi.x = emin.x - span.x,
-                    2 => lo.y = emax.y + span.y,
-                    _ => hi.y = emin.y - span.y,
-                }
-                moved = true;
-            }
-            if !moved {
-                break;
-            }
-            if !(hi.x > lo.x && hi.y > lo.y) {
-                return None;
-            }
-        }
-        let size = hi - lo;
-        if boundary
+        // An edge counts as meeting `R` within half of `span` of it (past
+        // the rounding of the clipping test); `R` is drawn to clear the
+        // nearest by about `span`.
+        let span = (hi - lo) * 1e-9;
+        let meets = |[a, b]: [DVec2; 2], lo: DVec2, hi: DVec2| {
+            segment_meets_rect(a, b, lo - 0.5 * span, hi + 0.5 * span)
+        };
+        // The largest rectangle of the box's shape about its centre that
+        // clears every boundary edge: the least, over the edges, of their
+        // distance from the centre in the box's half-sizes (the larger of
+        // the two axes' shares), less a margin past `span`.
+        let (centre, half) = (0.5 * (lo + hi), 0.5 * (hi - lo));
+        let reach = boundary
             .iter()
-            .any(|&[a, b]| segment_meets_rect(a, b, lo, hi))
-            || size.x * size.y < 0.25 * full
-        {
+            .map(|&[a, b]| scaled_distance(a, b, centre, half))
+            .fold(1.0f64, f64::min)
+            - 4e-9;
+        if reach <= 0.0 {
+            return None;
+        }
+        (lo, hi) = (centre - reach * half, centre + reach * half);
+        let size = hi - lo;
+        if boundary.iter().any(|&edge| meets(edge, lo, hi)) || size.x * size.y < 0.25 * full {
             return None;
         }
         // Covered once: the boundary winds once around the centre.
@@ -177,12 +186,12 @@ impl Terrain {
             return None;
         }
         // The triangles over the rectangle: slope and heights.
-        let meets = |t: &[u32; 3]| {
+        let over_r = |t: &[u32; 3]| {
             let p = t.map(|i| vertices[i as usize]);
             let (a, b) = (p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]));
             a.x <= hi.x && b.x >= lo.x && a.y <= hi.y && b.y >= lo.y
         };
-        let over: Vec<&[u32; 3]> = tris.iter().filter(|t| meets(t)).collect();
+        let over: Vec<&[u32; 3]> = tris.iter().filter(|t| over_r(t)).collect();
         let mut slope: f64 = 0.0;
         for t in &over {
             let [a, b, c] = t.map(|i| vertices[i as usize]);
@@ -527,6 +536,37 @@ fn min_levels(grid: Vec<f64>, side: usize) -> Vec<Vec<f64>> {
     levels
 }
 
+/// The least over the segment `[a, b]` of a point's distance from
+/// `centre`, each axis's in units of `half` and the larger of the two: the
+/// segment stays outside the open rectangle `centre +- t half` for `t` up
+/// to it. (The distance is convex and piecewise linear along the
+/// segment: its least is at an end, where one axis's share is zero, or
+/// where the two shares are equal.)
+fn scaled_distance(a: DVec2, b: DVec2, centre: DVec2, half: DVec2) -> f64 {
+    let (p, d) = ((a - centre) / half, (b - a) / half);
+    let at = |s: f64| {
+        let q = p + d * s;
+        q.x.abs().max(q.y.abs())
+    };
+    let mut ss = vec![0.0, 1.0];
+    for axis in 0..2 {
+        if d[axis] != 0.0 {
+            ss.push(-p[axis] / d[axis]);
+        }
+    }
+    // p.x + d.x s = +-(p.y + d.y s).
+    for sign in [1.0, -1.0] {
+        let k = d.x - sign * d.y;
+        if k != 0.0 {
+            ss.push((sign * p.y - p.x) / k);
+        }
+    }
+    ss.into_iter()
+        .filter(|s| (0.0..=1.0).contains(s))
+        .map(at)
+        .fold(f64::INFINITY, f64::min)
+}
+
 /// Whether the segment `[a, b]` meets the closed rectangle `[lo, hi]`.
 fn segment_meets_rect(a: DVec2, b: DVec2, lo: DVec2, hi: DVec2) -> bool {
     // Liang-Barsky clipping of the segment to the rectangle.
@@ -685,11 +725,11 @@ mod tests {
     #[test]
     fn a_hole_is_left_outside_the_rectangle() {
         let mut tris = grid(20, 0.0);
-        // The two triangles of the square at (14, 9) removed.
-        let k = 2 * (9 * 20 + 14);
+        // The two triangles of the square at (17, 3) removed.
+        let k = 2 * (3 * 20 + 17);
         tris.drain(k..k + 2);
         let t = Terrain::detect(0, &tris).expect("a terrain beside the hole");
-        let (hole_lo, hole_hi) = (DVec2::new(28.0, 18.0), DVec2::new(30.0, 20.0));
+        let (hole_lo, hole_hi) = (DVec2::new(34.0, 6.0), DVec2::new(36.0, 8.0));
         assert!(
             t.hi.x <= hole_lo.x
                 || t.lo.x >= hole_hi.x
@@ -699,6 +739,29 @@ mod tests {
             t.lo,
             t.hi
         );
+        // One near the middle leaves less than a quarter: no terrain.
+        let mut tris = grid(20, 0.0);
+        let k = 2 * (9 * 20 + 14);
+        tris.drain(k..k + 2);
+        assert!(Terrain::detect(0, &tris).is_none());
+    }
+
+    /// The rectangle depends on nothing but the triangles (an earlier
+    /// pull-in took the rim's edges in a hash map's order, which changes
+    /// from run to run), and is the same with the triangles listed in
+    /// another order.
+    #[test]
+    fn the_rectangle_is_the_same_whatever_the_order() {
+        let tris = grid(20, 0.13);
+        let t = Terrain::detect(0, &tris).unwrap();
+        let mut reversed = tris.clone();
+        reversed.reverse();
+        for _ in 0..4 {
+            for other in [&tris, &reversed] {
+                let u = Terrain::detect(0, other).unwrap();
+                assert_eq!((t.lo, t.hi), (u.lo, u.hi));
+            }
+        }
     }
 
     /// Every pixel `draw` fills lies below the surface (points of it, by
