@@ -695,26 +695,8 @@ mod tests {
         twice.push(tris[3]);
         assert!(Terrain::detect(0, &twice).is_none());
         // A box: upright faces cover no ground.
-        let (a, b) = (Vec3::ZERO, Vec3::ONE);
-        let c = |i: usize| {
-            Vec3::new(
-                [a.x, b.x][i & 1],
-                [a.y, b.y][(i >> 1) & 1],
-                [a.z, b.z][i >> 2],
-            )
-        };
-        let faces = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let cube: Vec<[Vec3; 3]> = faces
-            .iter()
-            .flat_map(|f| [[c(f[0]), c(f[1]), c(f[2])], [c(f[0]), c(f[2]), c(f[3])]])
-            .collect();
+        let mut cube = Vec::new();
+        crate::scene::procedural::shapes::push_box(&mut cube, Vec3::ZERO, Vec3::ONE);
         assert!(Terrain::detect(0, &cube).is_none());
         // A non-finite corner.
         let mut nan = tris.clone();
