@@ -96,6 +96,19 @@ impl Terrain {
         if triangles.len() < MIN_TRIANGLES {
             return None;
         }
+        // First the cheap refusal (most objects have upright faces): one
+        // orientation seen from above, no triangle on edge (the same test
+        // is made exactly below, on the welded corners).
+        let seen_from_above = |t: &[Vec3; 3]| {
+            let [a, b, c] = t.map(|v| v.as_dvec3().truncate());
+            (b - a).perp_dot(c - a)
+        };
+        let first = seen_from_above(&triangles[0]).signum();
+        if triangles.iter().any(|t| {
+            (seen_from_above(t) * first).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+        }) {
+            return None;
+        }
         // Weld by the corners' bits (0.0 and -0.0 alike).
         let mut index: HashMap<[u32; 3], u32> = HashMap::new();
         let mut vertices: Vec<DVec3> = Vec::new();
@@ -132,9 +145,8 @@ impl Terrain {
                 }
             }
         }
-        // (In the order of their corners' indices, which follow the
-        // triangles': the pull-in below depends on the order, and a hash
-        // map's differs from run to run, a review found.)
+        // (Sorted, so that nothing below sees a hash map's order, which
+        // differs from run to run.)
         let mut pairs: Vec<(u32, u32)> = edges
             .keys()
             .filter(|&&(a, b)| !edges.contains_key(&(b, a)))
@@ -145,8 +157,7 @@ impl Terrain {
             .iter()
             .map(|&(a, b)| [a, b].map(|i| vertices[i as usize].truncate()))
             .collect();
-        // The rectangle: the box, each side pulled in past the boundary
-        // edges nearest it.
+        // The rectangle, within the surface's box.
         let (mut lo, mut hi) = vertices
             .iter()
             .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(a, b), v| {
