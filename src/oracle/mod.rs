@@ -779,12 +779,18 @@ impl<'a> Oracle<'a> {
             oracle_sweep::sweep_hides(&sweeps, cmin, cmax, pmin, pmax, slack)
         };
         let skip_parent = |object: u32| parent_hidden.is_some_and(|h| h.contains(object as usize));
+        let terrains: Vec<&oracle_terrain::Terrain> = self
+            .terrains
+            .iter()
+            .filter(|t| !skip_parent(t.object) && t.usable(cmin, cmax, slack))
+            .collect();
         let shaft_search = oracle_shaft::Search {
             occluders: &self.occluders,
             skip: &skip_parent,
             slack,
             budget: self.params.shaft_budget,
             depth: self.params.shaft_depth,
+            terrains: &terrains,
         };
         // Each object on its own: 0 not hidden, 1 touching the cell, 2
         // hidden on the maps, 3 by the sweeps, 4 cluster by cluster, 5

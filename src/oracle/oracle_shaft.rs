@@ -74,6 +74,7 @@ use super::oracle_clusters::Cluster;
 use super::oracle_occluders::{Occluder, SlicedSolid};
 use super::oracle_project::{Frame, corners};
 use super::oracle_slice::slice_segments;
+use super::oracle_terrain::Terrain;
 use crate::geom::{Aabb, BoxNode, BoxTree};
 
 /// How many segments from the cell to an object's surface look for a
@@ -286,6 +287,10 @@ pub struct Search<'a> {
     pub budget: usize,
     /// The most cuts along one path.
     pub depth: usize,
+    /// The terrains the cell may use ([`Terrain::usable`] from it): a
+    /// segment from the cell that passes below one's surface over its
+    /// rectangle is blocked.
+    pub terrains: &'a [&'a Terrain],
 }
 
 impl Shafts {
@@ -452,6 +457,13 @@ impl Shafts {
         }) {
             *hint = solid_found;
             return true;
+        }
+        // The terrains, by their cuts on planes between the parts.
+        if !search.terrains.is_empty() {
+            if terrain_blocks(search, from.unwrap_or(a), (bmin, bmax)) {
+                return true;
+            }
+            any = true;
         }
         if !any || depth >= search.depth {
             return false;
@@ -1178,6 +1190,51 @@ fn shell_cuts(shell: &Occluder) -> Vec<Cut> {
     out
 }
 
+/// Whether a terrain blocks every segment from the part `a` of the cell
+/// to the box `b`: on one of seven upright planes between them (along x
+/// or y, where they are apart), every crossing (within the rectangle of
+/// the crossings of the boxes' 64 corner pairs, exact for boxes) lies
+/// over the terrain's rectangle and below its surface by the margin, and
+/// the cell lies above the surface ([`Terrain::usable`]): such a segment
+/// passes from above the surface to below it over the rectangle before
+/// the plane, so it hits the terrain there (`oracle_terrain.rs`). From a
+/// portal, the segments still start in the cell part (`a` here).
+fn terrain_blocks(search: &Search, a: (DVec3, DVec3), b: (DVec3, DVec3)) -> bool {
+    let slack = search.slack;
+    let (ca, cb) = (corners(a.0, a.1), corners(b.0, b.1));
+    for axis in 0..2 {
+        let (lo, hi) = if a.1[axis] + slack < b.0[axis] - slack {
+            (a.1[axis], b.0[axis])
+        } else if b.1[axis] + slack < a.0[axis] - slack {
+            (b.1[axis], a.0[axis])
+        } else {
+            continue;
+        };
+        let across = 1 - axis;
+        for f in 1..8 {
+            let c = lo + (hi - lo) * f as f64 / 8.0;
+            let (mut umin, mut umax, mut ztop) =
+                (f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
+            for p in &ca {
+                for q in &cb {
+                    let x = *p + (*q - *p) * ((c - p[axis]) / (q[axis] - p[axis]));
+                    umin = umin.min(x[across]);
+                    umax = umax.max(x[across]);
+                    ztop = ztop.max(x.z);
+                }
+            }
+            if search
+                .terrains
+                .iter()
+                .any(|t| t.upright_below(axis, c, (umin, umax), ztop, slack))
+            {
+                return true;
+            }
+        }
+    }
+    false
+}
+
 /// A sliceable solid's cuts: along each axis, at the middle and near both
 /// sides (those that close).
 fn solid_cuts(solid: &SlicedSolid) -> Vec<Cut> {
@@ -1326,6 +1383,7 @@ mod tests {
             slack: 1e-5,
             budget: 1_000_000,
             depth: 40,
+            terrains: &[],
         }
     }
 

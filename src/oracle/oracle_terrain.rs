@@ -397,6 +397,23 @@ impl Terrain {
         self.within(a, b, slack) && self.highest(a, b) + m < cmin.z
     }
 
+    /// Whether the part of the upright plane `p[axis] = c` (`axis` x or
+    /// y) over the ground from `u0` to `u1` across it and up to `ztop`
+    /// lies over `R` and below the surface, both by the slack's margin.
+    pub fn upright_below(
+        &self,
+        axis: usize,
+        c: f64,
+        (u0, u1): (f64, f64),
+        ztop: f64,
+        slack: f64,
+    ) -> bool {
+        let across = 1 - axis;
+        let (mut a, mut b) = (DVec2::ZERO, DVec2::ZERO);
+        (a[axis], b[axis], a[across], b[across]) = (c, c, u0, u1);
+        u0 <= u1 && self.within(a, b, slack) && ztop < self.low_over(a, b) - self.margin(slack)
+    }
+
     /// Where planes of an upright `frame` (`x` or `y`) in front of the cell
     /// `[cmin, cmax]` would best hold the terrain's cut: the `count`
     /// positions (`w` in the frame) of 32, spaced geometrically from the
