@@ -1832,4 +1832,68 @@ mod tests {
         };
         assert!(!shafts.hidden(&open, 2, &[], CELL, qmin, qmax));
     }
+
+    /// A ridge of ground (a height field of 2 m squares, 6 m high along
+    /// y = 30) blocks the shafts from a cell on its near side to a box
+    /// behind it below its line of sight, and not to one high above it;
+    /// segments between the blocked parts do pass below the surface.
+    #[test]
+    fn a_terrain_blocks_shafts_below_its_surface() {
+        use glam::Vec3;
+        let height = |x: f32, y: f32| 6.0 * (-(y - 30.0).powi(2) / 20.0).exp() + 0.01 * x;
+        let at = |i: usize, j: usize| {
+            let (x, y) = (2.0 * i as f32, 2.0 * j as f32);
+            Vec3::new(x, y, height(x, y))
+        };
+        let mut tris = Vec::new();
+        for j in 0..30 {
+            for i in 0..30 {
+                let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+                tris.push([a, b, c]);
+                tris.push([a, c, d]);
+            }
+        }
+        let terrain = Terrain::detect(0, &tris).expect("a terrain");
+        let cell = (DVec3::new(27.0, 10.0, 1.0), DVec3::new(29.0, 12.0, 2.5));
+        let no = |_: u32| false;
+        let terrains = [&terrain];
+        let with = Search {
+            terrains: &terrains,
+            ..search(&[], &no)
+        };
+        assert!(terrain.usable(cell.0, cell.1, with.slack));
+        let low = (DVec3::new(30.0, 44.0, 0.0), DVec3::new(32.0, 46.0, 2.5));
+        let high = (DVec3::new(30.0, 44.0, 20.0), DVec3::new(32.0, 46.0, 22.0));
+        assert!(terrain_blocks(&with, cell, low));
+        assert!(!terrain_blocks(&with, cell, high));
+        // Beside the cell (apart along x only, over the flat ground): no.
+        let beside = (DVec3::new(40.0, 10.0, 0.5), DVec3::new(42.0, 12.0, 2.0));
+        assert!(!terrain_blocks(&with, cell, beside));
+        // Segments between the blocked boxes go below the surface: the
+        // piecewise-linear height under points along them, by brute force.
+        let under = |p: DVec3| {
+            tris.iter()
+                .find_map(|t| {
+                    let [a, b, c] = t.map(|v| v.as_dvec3());
+                    let (e, f, q) = ((b - a).truncate(), (c - a).truncate(), (p - a).truncate());
+                    let d = e.perp_dot(f);
+                    let (u, v) = (q.perp_dot(f) / d, e.perp_dot(q) / d);
+                    (u >= 0.0 && v >= 0.0 && u + v <= 1.0)
+                        .then_some(a.z + u * (b.z - a.z) + v * (c.z - a.z))
+                })
+                .expect("over the ground")
+        };
+        let mut rng = Pcg64::seed_from_u64(46);
+        for _ in 0..200 {
+            let pick = |(lo, hi): (DVec3, DVec3), rng: &mut Pcg64| {
+                lo + (hi - lo) * DVec3::new(rng.random(), rng.random(), rng.random())
+            };
+            let (p, q) = (pick(cell, &mut rng), pick(low, &mut rng));
+            assert!(p.z > under(p));
+            assert!((1..100).any(|k| {
+                let x = p + (q - p) * (k as f64 / 100.0);
+                x.z < under(x)
+            }));
+        }
+    }
 }
