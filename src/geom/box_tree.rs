@@ -59,7 +59,7 @@ impl BoxTree {
             .collect();
         let mut nodes = Vec::with_capacity(2 * ids.len());
         if !ids.is_empty() {
-            build(boxes, &mut nodes, &mut ids);
+            build(boxes, &mut nodes, &mut ids, 0, median_split);
         }
         Self { nodes }
     }
@@ -77,7 +77,7 @@ impl BoxTree {
             .collect();
         let mut nodes = Vec::with_capacity(2 * ids.len());
         if !ids.is_empty() {
-            build_sah(boxes, &mut nodes, &mut ids, 0);
+            build(boxes, &mut nodes, &mut ids, 0, sah_split);
         }
         Self { nodes }
     }
@@ -193,8 +193,19 @@ impl BoxTree {
     }
 }
 
-/// Builds the subtree over `ids` at the end of `nodes`; returns its index.
-fn build(boxes: &[Aabb], nodes: &mut Vec<BoxNode>, ids: &mut [u32]) -> u32 {
+/// How a node's objects are split: puts those of one child first in
+/// `ids` and returns where the other's start; given the node's depth.
+type Split = fn(&[Aabb], &mut [u32], usize) -> usize;
+
+/// Builds the subtree over `ids` (at `depth`) at the end of `nodes`,
+/// each node's objects split by `split`; returns its index.
+fn build(
+    boxes: &[Aabb],
+    nodes: &mut Vec<BoxNode>,
+    ids: &mut [u32],
+    depth: usize,
+    split: Split,
+) -> u32 {
     let bounds = ids
         .iter()
         .fold(Aabb::EMPTY, |b, &o| b.union(&boxes[o as usize]));
@@ -207,16 +218,22 @@ fn build(boxes: &[Aabb], nodes: &mut Vec<BoxNode>, ids: &mut [u32]) -> u32 {
         bounds,
         children: [0, 0],
     });
-    let centres = Aabb::from_points(ids.iter().map(|&o| boxes[o as usize].center()));
-    let mid = split_at_median(boxes, ids, centres.size().max_position());
+    let mid = split(boxes, ids, depth);
     let (left, right) = ids.split_at_mut(mid);
-    let l = build(boxes, nodes, left);
-    let r = build(boxes, nodes, right);
+    let l = build(boxes, nodes, left, depth + 1, split);
+    let r = build(boxes, nodes, right, depth + 1, split);
     nodes[me as usize] = BoxNode::Inner {
         bounds,
         children: [l, r],
     };
     me
+}
+
+/// [`BoxTree::new`]'s split: at the median of the box centres along the
+/// axis where they spread most.
+fn median_split(boxes: &[Aabb], ids: &mut [u32], _depth: usize) -> usize {
+    let centres = Aabb::from_points(ids.iter().map(|&o| boxes[o as usize].center()));
+    split_at_median(boxes, ids, centres.size().max_position())
 }
 
 /// Puts the half of `ids` whose box centres are lowest along `axis` (ties
@@ -243,22 +260,10 @@ fn half_area(b: &Aabb) -> f32 {
     s.x * s.y + s.y * s.z + s.z * s.x
 }
 
-/// Builds the subtree over `ids` at the end of `nodes` by the surface
-/// area heuristic; returns its index.
-fn build_sah(boxes: &[Aabb], nodes: &mut Vec<BoxNode>, ids: &mut [u32], depth: usize) -> u32 {
+/// [`BoxTree::for_segments`]'s split: where the surface area heuristic
+/// puts the cut (the median past [`SAH_DEPTH`]).
+fn sah_split(boxes: &[Aabb], ids: &mut [u32], depth: usize) -> usize {
     const BINS: usize = 16;
-    let bounds = ids
-        .iter()
-        .fold(Aabb::EMPTY, |b, &o| b.union(&boxes[o as usize]));
-    let me = nodes.len() as u32;
-    if let [object] = *ids {
-        nodes.push(BoxNode::Object { bounds, object });
-        return me;
-    }
-    nodes.push(BoxNode::Inner {
-        bounds,
-        children: [0, 0],
-    });
     let centres = Aabb::from_points(ids.iter().map(|&o| boxes[o as usize].center()));
     let (lo, size) = (centres.min, centres.size());
     let bin = |o: u32, axis: usize| {
@@ -302,7 +307,7 @@ fn build_sah(boxes: &[Aabb], nodes: &mut Vec<BoxNode>, ids: &mut [u32], depth: u
             }
         }
     }
-    let mid = match best {
+    match best {
         Some((_, axis, k)) => {
             // Those in bins up to `k` first, in their order.
             let mut mid = 0;
@@ -315,15 +320,7 @@ fn build_sah(boxes: &[Aabb], nodes: &mut Vec<BoxNode>, ids: &mut [u32], depth: u
             mid
         }
         None => split_at_median(boxes, ids, size.max_position()),
-    };
-    let (left, right) = ids.split_at_mut(mid);
-    let l = build_sah(boxes, nodes, left, depth + 1);
-    let r = build_sah(boxes, nodes, right, depth + 1);
-    nodes[me as usize] = BoxNode::Inner {
-        bounds,
-        children: [l, r],
-    };
-    me
+    }
 }
 
 #[cfg(test)]

@@ -202,12 +202,14 @@ pub fn extract_with(scene: &Scene, shells: bool) -> Extracted {
 }
 
 /// An object's welded mesh: vertex positions and triangles as indices.
-struct Mesh {
-    vertices: Vec<DVec3>,
-    triangles: Vec<[u32; 3]>,
+pub(super) struct Mesh {
+    pub(super) vertices: Vec<DVec3>,
+    pub(super) triangles: Vec<[u32; 3]>,
 }
 
-fn weld(triangles: &[[Vec3; 3]]) -> Mesh {
+/// Welds triangles by their corners' bits (0.0 and -0.0 alike), leaving
+/// out those whose welded corners repeat.
+pub(super) fn weld(triangles: &[[Vec3; 3]]) -> Mesh {
     let mut index: HashMap<[u32; 3], u32> = HashMap::new();
     let mut vertices = Vec::new();
     let mut tris = Vec::with_capacity(triangles.len());

@@ -1111,7 +1111,7 @@ fn hole(cut: &Cut, lo: DVec2, hi: DVec2, grow: f64) -> Option<(DVec2, DVec2)> {
 
 /// The part of the segment `p -> q` inside the closed rectangle
 /// `[lo, hi]`, if any.
-fn clip_to_rect(p: DVec2, q: DVec2, lo: DVec2, hi: DVec2) -> Option<(DVec2, DVec2)> {
+pub(super) fn clip_to_rect(p: DVec2, q: DVec2, lo: DVec2, hi: DVec2) -> Option<(DVec2, DVec2)> {
     let d = q - p;
     let (mut t0, mut t1) = (0.0f64, 1.0f64);
     for axis in 0..2 {

@@ -47,6 +47,7 @@ use glam::{DVec2, DVec3, Vec3};
 use std::collections::HashMap;
 
 use super::oracle_project::Frame;
+use super::oracle_shaft::clip_to_rect;
 
 /// The fewest triangles an object needs to be tried as a terrain (a
 /// ground plane of two triangles hides only what is under the ground).
@@ -109,20 +110,12 @@ impl Terrain {
         }) {
             return None;
         }
-        // Weld by the corners' bits (0.0 and -0.0 alike).
-        let mut index: HashMap<[u32; 3], u32> = HashMap::new();
-        let mut vertices: Vec<DVec3> = Vec::new();
-        let mut tris: Vec<[u32; 3]> = Vec::with_capacity(triangles.len());
-        for t in triangles {
-            let ids = t.map(|v| {
-                let key = v.to_array().map(|c| if c == 0.0 { 0 } else { c.to_bits() });
-                *index.entry(key).or_insert_with(|| {
-                    vertices.push(v.as_dvec3());
-                    (vertices.len() - 1) as u32
-                })
-            });
-            tris.push(ids);
-        }
+        // Welded (no triangle is left out: one whose welded corners
+        // repeat has no area, refused above).
+        let super::oracle_occluders::Mesh {
+            vertices,
+            triangles: tris,
+        } = super::oracle_occluders::weld(triangles);
         if vertices.iter().any(|v| !v.is_finite()) {
             return None;
         }
@@ -172,7 +165,7 @@ impl Terrain {
         // nearest by about `span`.
         let span = (hi - lo) * 1e-9;
         let meets = |[a, b]: [DVec2; 2], lo: DVec2, hi: DVec2| {
-            segment_meets_rect(a, b, lo - 0.5 * span, hi + 0.5 * span)
+            clip_to_rect(a, b, lo - 0.5 * span, hi + 0.5 * span).is_some()
         };
         // The largest rectangle of the box's shape about its centre that
         // clears every boundary edge: the least, over the edges, of their
@@ -593,34 +586,6 @@ fn scaled_distance(a: DVec2, b: DVec2, centre: DVec2, half: DVec2) -> f64 {
         .filter(|s| (0.0..=1.0).contains(s))
         .map(at)
         .fold(f64::INFINITY, f64::min)
-}
-
-/// Whether the segment `[a, b]` meets the closed rectangle `[lo, hi]`.
-fn segment_meets_rect(a: DVec2, b: DVec2, lo: DVec2, hi: DVec2) -> bool {
-    // Liang-Barsky clipping of the segment to the rectangle.
-    let d = b - a;
-    let (mut t0, mut t1) = (0.0f64, 1.0f64);
-    for axis in 0..2 {
-        if d[axis] == 0.0 {
-            if a[axis] < lo[axis] || a[axis] > hi[axis] {
-                return false;
-            }
-            continue;
-        }
-        let (mut ta, mut tb) = (
-            (lo[axis] - a[axis]) / d[axis],
-            (hi[axis] - a[axis]) / d[axis],
-        );
-        if ta > tb {
-            std::mem::swap(&mut ta, &mut tb);
-        }
-        t0 = t0.max(ta);
-        t1 = t1.min(tb);
-        if t0 > t1 {
-            return false;
-        }
-    }
-    true
 }
 
 /// The winding number of the directed edges `boundary` around `p` (not on
