@@ -439,6 +439,9 @@ impl Shafts {
         // convex) along the same segment, by their cuts.
         let offset = search.occluders.len();
         let mut solid_found = None;
+        // The solids met, in the walk's order, for the portal's search
+        // below (which would walk the same segment again).
+        let mut met_solids = MetSolids::default();
         if along_until(&self.solid_tree, p, q, &mut |k| {
             let k = k as usize;
             let Some(solid) = self.cut_solids.get(k) else {
@@ -447,6 +450,7 @@ impl Shafts {
             if solid.object == object || (search.skip)(solid.object) || !solid.usable(search) {
                 return false;
             }
+            met_solids.push(k);
             any = true;
             let hit =
                 Some(offset + k) != tried && self.cuts_block(search, k, (a, from), (bmin, bmax));
@@ -471,7 +475,9 @@ impl Shafts {
         // A solid that blocks the segments crossing its cut but for those
         // through a hole (a door in a wall, the gap beside a box): the
         // rest go on from the hole, a portal.
-        if let Some(portal) = self.portal(search, object, (a, from), (bmin, bmax), (p, q)) {
+        if let Some(portal) =
+            self.portal(search, object, (a, from), (bmin, bmax), (p, q), &met_solids)
+        {
             // Followed only a shaft or two deep: a wall beyond the portal
             // blocks it at once or not at all, and a failed portal is paid
             // for out of the shafts that cutting would have used.
@@ -639,19 +645,19 @@ impl Shafts {
         a: ((DVec3, DVec3), Option<(DVec3, DVec3)>),
         b: (DVec3, DVec3),
         (p, q): (DVec3, DVec3),
+        met: &MetSolids,
     ) -> Option<(DVec3, DVec3)> {
         let mut best: Option<(f64, (DVec3, DVec3))> = None;
-        along_until(&self.solid_tree, p, q, &mut |k| {
-            let k = k as usize;
+        let mut visit = |k: usize| {
             let Some(solid) = self.cut_solids.get(k) else {
-                return false;
+                return;
             };
             if solid.object == object
                 || (search.skip)(solid.object)
                 || !solid.usable(search)
                 || !self.may_block(search, k, a, b)
             {
-                return false;
+                return;
             }
             for cut in &self.cuts[k] {
                 // The portal must lie strictly between the part and `b`.
@@ -674,8 +680,16 @@ impl Shafts {
                     best = Some((share, (min, max)));
                 }
             }
-            false
-        });
+        };
+        match met.list() {
+            Some(list) => list.iter().for_each(|&k| visit(k as usize)),
+            None => {
+                along_until(&self.solid_tree, p, q, &mut |k| {
+                    visit(k as usize);
+                    false
+                });
+            }
+        }
         best.map(|(_, portal)| portal)
     }
 
@@ -694,6 +708,30 @@ impl Shafts {
             .planes
             .iter()
             .any(|&(n, c)| crossings_inside(o, blocker, n, c, a, b, slack))
+    }
+}
+
+/// The solids a shaft's walk met (their indices in the walk's order), up
+/// to [`MetSolids::CAP`]; past that, `list` says to walk again.
+#[derive(Default)]
+struct MetSolids {
+    ids: [u32; MetSolids::CAP],
+    count: usize,
+}
+
+impl MetSolids {
+    const CAP: usize = 32;
+
+    fn push(&mut self, k: usize) {
+        if self.count < Self::CAP {
+            self.ids[self.count] = k as u32;
+        }
+        self.count += 1;
+    }
+
+    /// The solids met, or `None` when there were more than the cap.
+    fn list(&self) -> Option<&[u32]> {
+        (self.count <= Self::CAP).then(|| &self.ids[..self.count])
     }
 }
 
@@ -721,13 +759,21 @@ fn along_until(tree: &SegmentTree, p: DVec3, q: DVec3, visit: &mut dyn FnMut(u32
             HUGE
         }
     });
-    // Nodes, and objects (`true`), the nearest on top.
-    let mut stack: Vec<(u32, bool)> = Vec::with_capacity(64);
+    // Nodes, and objects (`true`), the nearest on top; the thread's
+    // stack is reused (a walk per test of a shaft: allocating one each
+    // time cost more than the walk's arithmetic).
+    thread_local! {
+        static STACK: std::cell::Cell<Vec<(u32, bool)>> = const { std::cell::Cell::new(Vec::new()) };
+    }
+    let mut stack = STACK.take();
+    stack.clear();
     stack.push((0, false));
+    let mut found = false;
     while let Some((k, leaf)) = stack.pop() {
         if leaf {
             if visit(k) {
-                return true;
+                found = true;
+                break;
             }
             continue;
         }
@@ -761,7 +807,8 @@ fn along_until(tree: &SegmentTree, p: DVec3, q: DVec3, visit: &mut dyn FnMut(u32
             stack.push((node.child[lane], leaf));
         }
     }
-    false
+    STACK.set(stack);
+    found
 }
 
 /// Whether the plane `n . p = c` separates boxes `a` and `b` (by more than
@@ -972,8 +1019,10 @@ fn crossings(
 /// boxes `a` and `b` that it separates. A crossing is `p + (q - p) t` for
 /// corners `p` and `q`, with `t` from their coordinates along `k` alone,
 /// so its coordinate along `u` depends on four of their six: the 16 ways
-/// to choose those give the bounds over all 64 pairs, by the same
-/// arithmetic, so the same bounds to the bit.
+/// to choose those give the bounds over all 64 pairs. For the two along
+/// `u`, the crossing is monotone in `t` (rounding is monotone), so its
+/// least and greatest are at the least and the greatest of the four `t`:
+/// the same arithmetic, so the same bounds to the bit.
 fn pair_rect(k: usize, c: f64, a: (DVec3, DVec3), b: (DVec3, DVec3)) -> (DVec2, DVec2) {
     let ts = [
         (a.0[k], b.0[k]),
@@ -982,15 +1031,20 @@ fn pair_rect(k: usize, c: f64, a: (DVec3, DVec3), b: (DVec3, DVec3)) -> (DVec2, 
         (a.1[k], b.1[k]),
     ]
     .map(|(pk, qk)| (c - pk) / (qk - pk));
+    // `pw + (qw - pw) t` is monotone in `t` (rounding is), so over the
+    // four `t` it is least and greatest at the least and the greatest.
+    let (t0, t1) = (
+        ts[0].min(ts[1]).min(ts[2].min(ts[3])),
+        ts[0].max(ts[1]).max(ts[2].max(ts[3])),
+    );
     let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
     for (i, w) in [(k + 1) % 3, (k + 2) % 3].into_iter().enumerate() {
         for pw in [a.0[w], a.1[w]] {
             for qw in [b.0[w], b.1[w]] {
-                for t in ts {
-                    let x = pw + (qw - pw) * t;
-                    lo[i] = lo[i].min(x);
-                    hi[i] = hi[i].max(x);
-                }
+                let d = qw - pw;
+                let (tl, th) = if d >= 0.0 { (t0, t1) } else { (t1, t0) };
+                lo[i] = lo[i].min(pw + d * tl);
+                hi[i] = hi[i].max(pw + d * th);
             }
         }
     }
@@ -1201,7 +1255,6 @@ fn shell_cuts(shell: &Occluder) -> Vec<Cut> {
 /// portal, the segments still start in the cell part (`a` here).
 fn terrain_blocks(search: &Search, a: (DVec3, DVec3), b: (DVec3, DVec3)) -> bool {
     let slack = search.slack;
-    let (ca, cb) = (corners(a.0, a.1), corners(b.0, b.1));
     for axis in 0..2 {
         let (lo, hi) = if a.1[axis] + slack < b.0[axis] - slack {
             (a.1[axis], b.0[axis])
@@ -1210,23 +1263,16 @@ fn terrain_blocks(search: &Search, a: (DVec3, DVec3), b: (DVec3, DVec3)) -> bool
         } else {
             continue;
         };
-        let across = 1 - axis;
+        // `pair_rect`'s coordinates are the other two axes in turn: the
+        // one across, and z.
+        let (u, z) = if axis == 0 { (0, 1) } else { (1, 0) };
         for f in 1..8 {
             let c = lo + (hi - lo) * f as f64 / 8.0;
-            let (mut umin, mut umax, mut ztop) =
-                (f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
-            for p in &ca {
-                for q in &cb {
-                    let x = *p + (*q - *p) * ((c - p[axis]) / (q[axis] - p[axis]));
-                    umin = umin.min(x[across]);
-                    umax = umax.max(x[across]);
-                    ztop = ztop.max(x.z);
-                }
-            }
+            let (rlo, rhi) = pair_rect(axis, c, a, b);
             if search
                 .terrains
                 .iter()
-                .any(|t| t.upright_below(axis, c, (umin, umax), ztop, slack))
+                .any(|t| t.upright_below(axis, c, (rlo[u], rhi[u]), rhi[z], slack))
             {
                 return true;
             }

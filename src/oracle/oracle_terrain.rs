@@ -291,13 +291,19 @@ impl Terrain {
         2.0 * slack * (1.0 + self.slope)
     }
 
+    /// The grid column (along `axis`) of coordinate `x`, clamped to the
+    /// grid: its floor, taken by truncation where it is positive (the
+    /// same index; `floor` is a library call on baseline x86-64, and the
+    /// shafts ask for these many times a test).
+    fn column(&self, x: f64, axis: usize) -> usize {
+        let v = (x - self.lo[axis]) / self.step[axis];
+        let i = if v > 0.0 { v as usize } else { 0 };
+        i.min(self.n[axis] - 1)
+    }
+
     /// The grid cells over the ground rectangle `[a, b]` (within `R`).
     fn cells(&self, a: DVec2, b: DVec2) -> impl Iterator<Item = usize> + '_ {
-        let at = |x: f64, axis: usize| {
-            ((x - self.lo[axis]) / self.step[axis])
-                .floor()
-                .clamp(0.0, self.n[axis] as f64 - 1.0) as usize
-        };
+        let at = |x: f64, axis: usize| self.column(x, axis);
         let (i0, i1, j0, j1) = (at(a.x, 0), at(b.x, 0), at(a.y, 1), at(b.y, 1));
         (j0..=j1).flat_map(move |j| (i0..=i1).map(move |i| j * self.n[0] + i))
     }
@@ -306,11 +312,7 @@ impl Terrain {
     /// (within `R`): the lowest of the blocks over it, of the level where
     /// at most three span it a side.
     fn low_over(&self, a: DVec2, b: DVec2) -> f64 {
-        let at = |x: f64, axis: usize| {
-            ((x - self.lo[axis]) / self.step[axis])
-                .floor()
-                .clamp(0.0, self.n[axis] as f64 - 1.0) as usize
-        };
+        let at = |x: f64, axis: usize| self.column(x, axis);
         let (mut i0, mut i1, mut j0, mut j1) = (at(a.x, 0), at(b.x, 0), at(a.y, 1), at(b.y, 1));
         let mut level = 0;
         while (i1 - i0).max(j1 - j0) > 2 && level + 1 < self.lows.len() {
