@@ -55,6 +55,14 @@ pub fn convex_hull(points: &mut Vec<DVec2>) -> Vec<DVec2> {
 /// segment, hence inside the half-planes clipped before.
 pub fn clip_half_plane(poly: &[DVec2], f: impl Fn(DVec2) -> f64) -> Vec<DVec2> {
     let mut out = Vec::with_capacity(poly.len() + 1);
+    clip_half_plane_into(poly, f, &mut out);
+    out
+}
+
+/// [`clip_half_plane`] into `out` (cleared first), so that a caller
+/// clipping many polygons reuses one buffer.
+fn clip_half_plane_into(poly: &[DVec2], f: impl Fn(DVec2) -> f64, out: &mut Vec<DVec2>) {
+    out.clear();
     for (i, &a) in poly.iter().enumerate() {
         let b = poly[(i + 1) % poly.len()];
         let (fa, fb) = (f(a), f(b));
@@ -66,25 +74,38 @@ pub fn clip_half_plane(poly: &[DVec2], f: impl Fn(DVec2) -> f64) -> Vec<DVec2> {
             out.push(a + (b - a) * t);
         }
     }
-    out
 }
 
 /// Clips the convex polygon `subject` to the convex polygon `clip` (both
 /// counter-clockwise): their intersection, empty when they do not overlap
 /// (or meet only along an edge or at a point).
 pub fn clip_convex(subject: &[DVec2], clip: &[DVec2]) -> Vec<DVec2> {
-    let mut out: Vec<DVec2> = subject.to_vec();
+    let (mut out, mut scratch) = (Vec::new(), Vec::new());
+    clip_convex_into(subject, clip, &mut out, &mut scratch);
+    out
+}
+
+/// [`clip_convex`] into `out` (cleared first), with `scratch` as the
+/// second buffer: the same polygon, without an allocation per edge.
+pub fn clip_convex_into(
+    subject: &[DVec2],
+    clip: &[DVec2],
+    out: &mut Vec<DVec2>,
+    scratch: &mut Vec<DVec2>,
+) {
+    out.clear();
+    out.extend_from_slice(subject);
     for i in 0..clip.len() {
         if out.is_empty() {
             break;
         }
         let (a, b) = (clip[i], clip[(i + 1) % clip.len()]);
-        out = clip_half_plane(&out, |p| (b - a).perp_dot(p - a));
+        clip_half_plane_into(out, |p| (b - a).perp_dot(p - a), scratch);
+        std::mem::swap(out, scratch);
     }
-    if out.len() < 3 || signed_area(&out) <= 0.0 {
+    if out.len() < 3 || signed_area(out) <= 0.0 {
         out.clear();
     }
-    out
 }
 
 #[cfg(test)]

@@ -56,9 +56,10 @@ pub type MapJob<'a> = (usize, &'a [ProjectedOccluder]);
 /// covers the pixel entirely; +inf elsewhere. The reference for the GPU.
 pub fn cpu_rasterise(n: usize, occluders: &[ProjectedOccluder]) -> Vec<f64> {
     let mut map = vec![f64::INFINITY; n * n];
+    let mut buffers = super::oracle_project::ViewBuffers::default();
     for o in occluders {
-        let poly = super::oracle_project::intersect_views(&o.views);
-        draw_pixels(&mut map, n, &poly, o.depth);
+        super::oracle_project::intersect_views_into(&o.views, &mut buffers);
+        draw_pixels(&mut map, n, &buffers.out, o.depth);
     }
     map
 }

@@ -28,7 +28,7 @@
 
 use glam::{DVec2, DVec3};
 
-use crate::geom::polygon::{clip_convex, convex_hull};
+use crate::geom::polygon::{clip_convex_into, convex_hull};
 
 /// One of the six planes' frames: `w` along `sign * axis`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -214,15 +214,37 @@ pub fn ordered_views(points: &[DVec3], eyes: &[DVec3], wp: f64) -> Option<Vec<Ve
 }
 
 /// The intersection of views (the Projection of a convex occluder).
+#[cfg(test)]
 pub fn intersect_views(views: &[Vec<DVec2>]) -> Vec<DVec2> {
-    let mut out = views.first().cloned().unwrap_or_default();
+    let mut buffers = ViewBuffers::default();
+    intersect_views_into(views, &mut buffers);
+    buffers.out
+}
+
+/// Buffers for [`intersect_views_into`], reused over many occluders.
+#[derive(Debug, Default)]
+pub struct ViewBuffers {
+    /// The intersection.
+    pub out: Vec<DVec2>,
+    next: Vec<DVec2>,
+    scratch: Vec<DVec2>,
+}
+
+/// [`intersect_views`] into `buffers.out`: the same polygon, allocating
+/// only while the buffers grow.
+pub fn intersect_views_into(views: &[Vec<DVec2>], buffers: &mut ViewBuffers) {
+    let ViewBuffers { out, next, scratch } = buffers;
+    out.clear();
+    if let Some(first) = views.first() {
+        out.extend_from_slice(first);
+    }
     for v in &views[1.min(views.len())..] {
         if out.is_empty() {
             break;
         }
-        out = clip_convex(&out, v);
+        clip_convex_into(out, v, next, scratch);
+        std::mem::swap(out, next);
     }
-    out
 }
 
 /// The bounding rectangle of the Projection of the box `[qmin, qmax]` seen
