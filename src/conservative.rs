@@ -416,6 +416,43 @@ fn oracle_set(ctx: &Ctx, cell: &Cell, parent: Option<&ObjectSet>) -> ObjectSet {
     set
 }
 
+/// [`oracle_set`] of several cells with the same parent: on the GPU in one
+/// batch ([`Oracle::cells`]: every cell's maps in one submission), on the
+/// CPU one cell at a time in parallel (a batch would only hold more maps
+/// in memory at once). The same sets either way.
+fn oracle_sets(ctx: &Ctx, cells: &[Cell], parent: Option<&ObjectSet>) -> Vec<ObjectSet> {
+    use rayon::prelude::*;
+    if !ctx.oracle.rasteriser().is_gpu() {
+        return cells
+            .par_iter()
+            .map(|c| oracle_set(ctx, c, parent))
+            .collect();
+    }
+    let hidden = parent.map(|p| {
+        let mut h = ObjectSet::full(p.capacity());
+        h.subtract(p);
+        h
+    });
+    let batch: Vec<(Aabb, Option<&ObjectSet>)> =
+        cells.iter().map(|c| (c.space(), hidden.as_ref())).collect();
+    let reports = ctx.oracle.cells(&batch);
+    // Each cell's own time (its share of the submission included), as
+    // one cell at a time counts it.
+    let nanos: u128 = reports.iter().map(|r| r.times.total().as_nanos()).sum();
+    ctx.oracle_nanos.fetch_add(nanos as u64, Ordering::Relaxed);
+    ctx.cells.fetch_add(cells.len() as u64, Ordering::Relaxed);
+    reports
+        .into_iter()
+        .map(|r| {
+            let mut set = r.visible;
+            if let Some(p) = parent {
+                set.intersect_with(p);
+            }
+            set
+        })
+        .collect()
+}
+
 /// Bakes `cell`, whose set is `known` when a tried cut already ran the
 /// oracle on it; `stalled` levels above it in a row proved nothing more
 /// hidden, and its sides were halved `halvings` times.
@@ -476,28 +513,25 @@ fn bake_cell(
     // whose halves hold the fewest triangles together (the halves are
     // equal in size, so this is the expected set of a random eye; the
     // longest side wins a tie).
-    let (dim, value, halves) = if ctx.params.try_cuts && cuts.len() > 1 {
-        use rayon::prelude::*;
-        let tried: Vec<(usize, f32, ObjectSet, ObjectSet)> = cuts
-            .par_iter()
-            .map(|&(d, v)| {
-                let (below, above) = cell.split(d, v);
-                let (b, a) = rayon::join(
-                    || oracle_set(ctx, &below, Some(&set)),
-                    || oracle_set(ctx, &above, Some(&set)),
-                );
-                (d, v, b, a)
-            })
-            .collect();
-        let best = tried
-            .into_iter()
-            .map(|(d, v, b, a)| (tris(&b) + tris(&a), d, v, b, a))
-            .reduce(|x, y| if y.0 < x.0 { y } else { x })
-            .expect("at least one cut");
-        (best.1, best.2, Some((best.3, best.4)))
-    } else {
-        (cuts[0].0, cuts[0].1, None)
-    };
+    let tried = if ctx.params.try_cuts { cuts.len() } else { 1 };
+    let halves: Vec<Cell> = cuts[..tried]
+        .iter()
+        .flat_map(|&(d, v)| {
+            let (below, above) = cell.split(d, v);
+            [below, above]
+        })
+        .collect();
+    let mut sets = oracle_sets(ctx, &halves, Some(&set)).into_iter();
+    let (dim, value, halves) = cuts[..tried]
+        .iter()
+        .map(|&(d, v)| {
+            let (b, a) = (sets.next(), sets.next());
+            let (b, a) = (b.expect("a set per half"), a.expect("a set per half"));
+            (tris(&b) + tris(&a), d, v, b, a)
+        })
+        .reduce(|x, y| if y.0 < x.0 { y } else { x })
+        .map(|best| (best.1, best.2, Some((best.3, best.4))))
+        .expect("at least one cut");
     let (below, above) = cell.split(dim, value);
     let mut cut = halvings;
     cut[dim] += 1;

@@ -234,10 +234,11 @@ pub struct BuildArgs {
           value_parser = clap::value_parser!(u32).range(0..=(1 << 28)))]
     seal_voxels: u32,
     /// With --conservative: rasterise the oracle's Depth Maps on the GPU
-    /// (wgpu) where one exists. The bake uses the CPU by default: one map
-    /// per submission, the GPU is slower per cell today (notes/oracle.md:
-    /// 12 against 33 ms on Mesa's lavapipe, 9.8 against 11.9 ms on an
-    /// H100), and the bake keeps every core busy with cells.
+    /// (wgpu) where one exists, the maps of all the halves of a cell's
+    /// cuts in one submission. The bake uses the CPU by default: the GPU
+    /// was slower per cell where measured (notes/oracle.md: 12 against 33
+    /// ms on Mesa's lavapipe, 9.8 against 11.9 ms on an H100, one cell a
+    /// submission then), and the bake keeps every core busy with cells.
     #[arg(long, requires = "conservative")]
     gpu: bool,
     /// The most nodes the tree may have [1 to 4,294,967,295; lowered to

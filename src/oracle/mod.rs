@@ -495,6 +495,73 @@ impl<'a> Oracle<'a> {
         self.run(cell, parent_hidden, rasterise, None)
     }
 
+    /// [`Oracle::cell`] for several cells at once, each with the objects
+    /// proved hidden from a cell around it (or `None`): the same reports,
+    /// in the same order, but every cell's Depth Maps are made in one call
+    /// of the rasteriser (on the GPU, one submission for them all, where
+    /// one cell's dozen maps are too little work to pay for a
+    /// submission and its readback), and the cells' other work runs in
+    /// parallel.
+    pub fn cells(&self, cells: &[(Aabb, Option<&ObjectSet>)]) -> Vec<CellReport> {
+        self.cells_with(cells, &mut |jobs| self.rasteriser.rasterise_many(jobs))
+    }
+
+    /// [`Oracle::cells`] with the Depth Maps made by `rasterise` (as for
+    /// [`Oracle::cell_with`]: one call, every cell's maps in turn). Each
+    /// report's rasterise time holds an equal share of that call.
+    ///
+    /// # Panics
+    /// When `rasterise` returns another number of maps than it was given.
+    pub fn cells_with(
+        &self,
+        cells: &[(Aabb, Option<&ObjectSet>)],
+        rasterise: &mut dyn FnMut(&[MapJob]) -> Vec<Vec<f64>>,
+    ) -> Vec<CellReport> {
+        let prepared: Vec<Prepared> = cells
+            .par_iter()
+            .map(|(cell, hidden)| self.prepare(cell, *hidden))
+            .collect();
+        let n = self.params.resolution;
+        let (mut jobs, mut counts) = (Vec::new(), Vec::with_capacity(prepared.len()));
+        for p in &prepared {
+            let here = match p {
+                Prepared::Maps(pending) => pending.jobs(n),
+                Prepared::Done(_) => Vec::new(),
+            };
+            counts.push(here.len());
+            jobs.extend(here);
+        }
+        let start = Instant::now();
+        let level0s = if jobs.is_empty() {
+            Vec::new()
+        } else {
+            rasterise(&jobs)
+        };
+        assert_eq!(level0s.len(), jobs.len(), "one level-0 map per job");
+        drop(jobs);
+        let waiting = prepared
+            .iter()
+            .filter(|p| matches!(p, Prepared::Maps(_)))
+            .count();
+        let share = start.elapsed() / waiting.max(1) as u32;
+        let mut level0s = level0s.into_iter();
+        let work: Vec<(Prepared, Vec<Vec<f64>>)> = prepared
+            .into_iter()
+            .zip(counts)
+            .map(|(p, k)| (p, level0s.by_ref().take(k).collect()))
+            .collect();
+        work.into_par_iter()
+            .zip(cells.par_iter())
+            .map(|((p, maps), (_, hidden))| {
+                let report = match p {
+                    Prepared::Done(report) => *report,
+                    Prepared::Maps(pending) => self.finish(*pending, maps, share, *hidden, None),
+                };
+                self.settle(report)
+            })
+            .collect()
+    }
+
     /// [`Oracle::cell`], and for each object it keeps, the slices proved
     /// hidden (papers/004 sec. 3) on the same maps and sweeps (never a
     /// slice box that touches the cell): per piece, the [`crate::slices::SliceIndex`] that
@@ -523,7 +590,12 @@ impl<'a> Oracle<'a> {
         rasterise: &mut dyn FnMut(&[MapJob]) -> Vec<Vec<f64>>,
         sliced: Option<&SlicedScene>,
     ) -> CellReport {
-        let mut report = self.prove(cell, parent_hidden, rasterise, sliced);
+        self.settle(self.prove(cell, parent_hidden, rasterise, sliced))
+    }
+
+    /// `report` with the objects flagged always visible kept and the empty
+    /// objects hidden.
+    fn settle(&self, mut report: CellReport) -> CellReport {
         for o in self.scene.always_visible() {
             report.visible.insert(o);
         }
@@ -540,11 +612,27 @@ impl<'a> Oracle<'a> {
         rasterise: &mut dyn FnMut(&[MapJob]) -> Vec<Vec<f64>>,
         sliced: Option<&SlicedScene>,
     ) -> CellReport {
+        match self.prepare(cell, parent_hidden) {
+            Prepared::Done(report) => *report,
+            Prepared::Maps(pending) => {
+                let start = Instant::now();
+                let level0s = rasterise(&pending.jobs(self.params.resolution));
+                let spent = start.elapsed();
+                self.finish(*pending, level0s, spent, parent_hidden, sliced)
+            }
+        }
+    }
+
+    /// A cell's proof up to its Depth Maps: the free space, the solids it
+    /// reaches into, each face's plane placement and sweep plan, and every
+    /// map's occluders projected; or the whole report when there is nothing
+    /// to rasterise.
+    fn prepare(&self, cell: &Aabb, parent_hidden: Option<&ObjectSet>) -> Prepared {
         let objects = self.scene.objects().len();
         let (cmin, cmax) = (cell.min.as_dvec3(), cell.max.as_dvec3());
         if !(cmin.is_finite() && cmax.is_finite() && cmin.cmple(cmax).all()) {
             // Not a box (NaN, infinite, inside out): nothing is proved.
-            return CellReport {
+            return Prepared::Done(Box::new(CellReport {
                 visible: ObjectSet::full(objects),
                 hidden_by_parent: 0,
                 touching: objects,
@@ -558,7 +646,7 @@ impl<'a> Oracle<'a> {
                 projected_from: *cell,
                 times: CellTimes::default(),
                 slices: Vec::new(),
-            };
+            }));
         }
         let slack = self.slack(cmin, cmax);
         let mut times = CellTimes::default();
@@ -646,7 +734,7 @@ impl<'a> Oracle<'a> {
         times.select += start.elapsed();
         let projected_from = Aabb::new(cmin.as_vec3(), cmax.as_vec3());
         if whole_inside {
-            return CellReport {
+            return Prepared::Done(Box::new(CellReport {
                 visible: keep,
                 hidden_by_parent,
                 touching: 0,
@@ -660,7 +748,7 @@ impl<'a> Oracle<'a> {
                 projected_from,
                 times,
                 slices: Vec::new(),
-            };
+            }));
         }
         // Placement per face, then every map's occluders, rasterised in one
         // batch (one GPU submission), then the maps finished on the CPU.
@@ -706,16 +794,58 @@ impl<'a> Oracle<'a> {
                 )
             })
             .collect();
-        let jobs: Vec<MapJob> = placed
-            .iter()
-            .map(|o| (n, o.as_slice()))
-            .chain(
-                faces
-                    .iter()
-                    .flat_map(|f| f.3.iter().map(|s| (n, s.occluders.as_slice()))),
-            )
-            .collect();
-        let mut level0s = rasterise(&jobs).into_iter();
+        times.rasterise += start.elapsed();
+        Prepared::Maps(Box::new(Pending {
+            cmin,
+            cmax,
+            slack,
+            times,
+            hidden,
+            hidden_by_parent,
+            sealed_hidden,
+            inside,
+            keep,
+            reached,
+            projected_from,
+            faces,
+            placed_planes,
+            placed,
+        }))
+    }
+
+    /// The rest of a cell's proof once its maps (`level0s`, in the order of
+    /// [`Pending::jobs`]) are rasterised, which took `spent`: the maps and
+    /// sweeps finished, and every object tested on them, by clusters and by
+    /// shafts.
+    fn finish(
+        &self,
+        pending: Pending,
+        level0s: Vec<Vec<f64>>,
+        spent: Duration,
+        parent_hidden: Option<&ObjectSet>,
+        sliced: Option<&SlicedScene>,
+    ) -> CellReport {
+        let Pending {
+            cmin,
+            cmax,
+            slack,
+            mut times,
+            mut hidden,
+            hidden_by_parent,
+            sealed_hidden,
+            inside,
+            keep,
+            reached,
+            projected_from,
+            faces,
+            placed_planes,
+            placed,
+        } = pending;
+        let objects = self.scene.objects().len();
+        let pad = DVec3::splat(slack);
+        times.rasterise += spent;
+        let start = Instant::now();
+        let mut level0s = level0s.into_iter();
         let placed_level0s: Vec<Vec<f64>> = level0s.by_ref().take(placed.len()).collect();
         let (planes, maps): (Vec<PlaneReport>, Vec<(Frame, DepthMap, f64)>) = placed_planes
             .par_iter()
@@ -1669,6 +1799,51 @@ struct SweepStep {
     patch: Option<usize>,
     rect: (DVec2, DVec2),
     occluders: Vec<ProjectedOccluder>,
+}
+
+/// A cell's proof before or without its maps ([`Oracle::prepare`]).
+enum Prepared {
+    /// Nothing to rasterise: the report.
+    Done(Box<CellReport>),
+    /// Maps to rasterise, then [`Oracle::finish`].
+    Maps(Box<Pending>),
+}
+
+/// What [`Oracle::prepare`] leaves for [`Oracle::finish`]: the cell the
+/// projections run from and the tracer's slack, what is hidden or kept so
+/// far, and each face's planes and sweep steps with their occluders
+/// projected.
+struct Pending {
+    cmin: DVec3,
+    cmax: DVec3,
+    slack: f64,
+    times: CellTimes,
+    hidden: ObjectSet,
+    hidden_by_parent: usize,
+    sealed_hidden: usize,
+    inside: Vec<usize>,
+    keep: ObjectSet,
+    reached: Vec<usize>,
+    projected_from: Aabb,
+    faces: Vec<(Frame, Vec<f64>, FaceSetup, Vec<SweepStep>)>,
+    placed_planes: Vec<(usize, f64)>,
+    placed: Vec<Vec<ProjectedOccluder>>,
+}
+
+impl Pending {
+    /// Its maps to rasterise at `n` x `n` pixels: the placed planes', then
+    /// each face's sweep steps'.
+    fn jobs(&self, n: usize) -> Vec<MapJob<'_>> {
+        self.placed
+            .iter()
+            .map(|o| (n, o.as_slice()))
+            .chain(
+                self.faces
+                    .iter()
+                    .flat_map(|f| f.3.iter().map(|s| (n, s.occluders.as_slice()))),
+            )
+            .collect()
+    }
 }
 
 /// What one face's plane placement found, for its sweep: the occluders in

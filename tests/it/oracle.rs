@@ -1400,3 +1400,88 @@ fn a_ridge_of_ground_hides_the_houses_beyond_it() {
     assert!(violations(&oracle, &tracer, &flank, 100_000, &mut rng).is_empty());
     assert_unseen(&scene, &tracer, &flank, &hidden, 300, &mut rng);
 }
+
+/// What a report proves (all but its times).
+fn proved(r: &vis5d::oracle::CellReport) -> impl PartialEq + std::fmt::Debug {
+    (
+        r.visible.clone(),
+        r.planes.clone(),
+        (
+            r.hidden_by_parent,
+            r.touching,
+            r.sweep_planes,
+            r.sweep_hidden,
+        ),
+        (
+            r.cluster_hidden,
+            r.shaft_hidden,
+            r.sealed_hidden,
+            r.inside_solids,
+        ),
+        // Bits, so that a NaN cell's box equals itself.
+        [r.projected_from.min, r.projected_from.max].map(|v| v.to_array().map(f32::to_bits)),
+    )
+}
+
+/// `Oracle::cells` makes every cell's maps in one call of the rasteriser
+/// (one GPU submission) and answers each cell as `Oracle::cell` does
+/// alone: the property test's cells, a cell that is no box, and cells
+/// given what their parents hid; on the CPU and, where there is one, the
+/// GPU.
+#[test]
+fn a_batch_of_cells_answers_as_each_cell_alone() {
+    let gpu = gpu();
+    for name in ["city.obj", "office.obj"] {
+        let scene = scene::load(committed(name)).expect("committed scene loads");
+        let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu())
+            .expect("default parameters");
+        let mut rng = Pcg64::seed_from_u64(0xba7c);
+        let mut boxes: Vec<Aabb> = cells(&scene, &mut rng).into_iter().map(|c| c.1).collect();
+        boxes.push(Aabb::new(Vec3::splat(f32::NAN), Vec3::ONE));
+        // Children of the first two cells, with what their parents hid.
+        let parents: Vec<vis5d::bitset::ObjectSet> = boxes[..2]
+            .iter()
+            .map(|b| {
+                let mut hidden = vis5d::bitset::ObjectSet::full(scene.objects().len());
+                hidden.subtract(&oracle.cell(b, None).visible);
+                hidden
+            })
+            .collect();
+        let mut batch: Vec<(Aabb, Option<&vis5d::bitset::ObjectSet>)> =
+            boxes.iter().map(|&b| (b, None)).collect();
+        for (b, hidden) in boxes[..2].iter().zip(&parents) {
+            let child = Aabb::new(b.min, b.center());
+            batch.push((child, Some(hidden)));
+        }
+        let alone: Vec<_> = batch.iter().map(|(b, h)| oracle.cell(b, *h)).collect();
+        let mut calls = 0;
+        let together = oracle.cells_with(&batch, &mut |jobs| {
+            calls += 1;
+            oracle.rasteriser().rasterise_many(jobs)
+        });
+        assert_eq!(calls, 1, "{name}: one call of the rasteriser");
+        assert_eq!(together.len(), batch.len());
+        for (k, (a, t)) in alone.iter().zip(&together).enumerate() {
+            assert_eq!(proved(a), proved(t), "{name}, cell {k} on the CPU");
+        }
+        assert!(
+            alone
+                .iter()
+                .any(|r| r.visible.count() < scene.objects().len()),
+            "{name}: the cells prove something"
+        );
+        let Some(gpu) = &gpu else { continue };
+        let mut calls = 0;
+        let together = oracle.cells_with(&batch, &mut |jobs| {
+            calls += 1;
+            gpu.rasterise_many(jobs).expect("the GPU rasterises")
+        });
+        assert_eq!(calls, 1);
+        for (k, ((b, h), t)) in batch.iter().zip(&together).enumerate() {
+            let alone = oracle.cell_with(b, *h, &mut |jobs| {
+                gpu.rasterise_many(jobs).expect("the GPU rasterises")
+            });
+            assert_eq!(proved(&alone), proved(t), "{name}, cell {k} on the GPU");
+        }
+    }
+}
