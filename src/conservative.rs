@@ -514,14 +514,14 @@ fn bake_cell(
     // equal in size, so this is the expected set of a random eye; the
     // longest side wins a tie).
     let tried = if ctx.params.try_cuts { cuts.len() } else { 1 };
-    let halves: Vec<Cell> = cuts[..tried]
+    let tried_halves: Vec<Cell> = cuts[..tried]
         .iter()
         .flat_map(|&(d, v)| {
             let (below, above) = cell.split(d, v);
             [below, above]
         })
         .collect();
-    let mut sets = oracle_sets(ctx, &halves, Some(&set)).into_iter();
+    let mut sets = oracle_sets(ctx, &tried_halves, Some(&set)).into_iter();
     let (dim, value, halves) = cuts[..tried]
         .iter()
         .map(|&(d, v)| {

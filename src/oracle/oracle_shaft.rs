@@ -1032,7 +1032,10 @@ fn pair_rect(k: usize, c: f64, a: (DVec3, DVec3), b: (DVec3, DVec3)) -> (DVec2, 
     ]
     .map(|(pk, qk)| (c - pk) / (qk - pk));
     // `pw + (qw - pw) t` is monotone in `t` (rounding is), so over the
-    // four `t` it is least and greatest at the least and the greatest.
+    // four `t` it is least and greatest at the least and the greatest;
+    // with `qw == pw` it is `pw` whatever `t` (even an infinite one,
+    // which only an overflow of `c - pk` could make: then `0 t` would be
+    // no number, and the rectangle too small).
     let (t0, t1) = (
         ts[0].min(ts[1]).min(ts[2].min(ts[3])),
         ts[0].max(ts[1]).max(ts[2].max(ts[3])),
@@ -1042,9 +1045,15 @@ fn pair_rect(k: usize, c: f64, a: (DVec3, DVec3), b: (DVec3, DVec3)) -> (DVec2, 
         for pw in [a.0[w], a.1[w]] {
             for qw in [b.0[w], b.1[w]] {
                 let d = qw - pw;
-                let (tl, th) = if d >= 0.0 { (t0, t1) } else { (t1, t0) };
-                lo[i] = lo[i].min(pw + d * tl);
-                hi[i] = hi[i].max(pw + d * th);
+                let (x0, x1) = if d == 0.0 {
+                    (pw, pw)
+                } else if d > 0.0 {
+                    (pw + d * t0, pw + d * t1)
+                } else {
+                    (pw + d * t1, pw + d * t0)
+                };
+                lo[i] = lo[i].min(x0);
+                hi[i] = hi[i].max(x1);
             }
         }
     }
