@@ -1501,10 +1501,9 @@ impl<'a> Oracle<'a> {
         level0: &mut [f64],
     ) -> usize {
         let (rmin, rmax) = rect;
-        let pixel = (rmax - rmin) / n as f64;
-        if !(pixel.x > 0.0 && pixel.y > 0.0) {
+        let Some(pixel) = oracle_plane::pixel_size(rect, n) else {
             return 0;
-        }
+        };
         let mut count = 0;
         for &(_, i, w0, w1) in solids {
             if !(w0 < wp && wp < w1) {
@@ -1598,10 +1597,9 @@ impl<'a> Oracle<'a> {
         after: f64,
     ) -> Vec<ProjectedOccluder> {
         let (rmin, rmax) = rect;
-        let pixel = (rmax - rmin) / n as f64;
-        if !(pixel.x > 0.0 && pixel.y > 0.0) {
+        let Some(pixel) = oracle_plane::pixel_size(rect, n) else {
             return Vec::new();
-        }
+        };
         let mut out = Vec::new();
         let mut points = Vec::new();
         let (wa, wb) = (frame.world(lmin), frame.world(lmax));

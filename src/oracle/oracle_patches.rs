@@ -170,10 +170,9 @@ fn patch(axis: usize, coord: f64, triangles: Vec<[DVec2; 3]>, area: f64) -> Patc
 /// that the union of the patch's triangles covers entirely; returns how
 /// many pixels that is.
 pub fn draw_patch(level0: &mut [f64], n: usize, rmin: DVec2, rmax: DVec2, patch: &Patch) -> usize {
-    let pixel = (rmax - rmin) / n as f64;
-    if !(pixel.x > 0.0 && pixel.y > 0.0) {
+    let Some(pixel) = super::oracle_plane::pixel_size((rmin, rmax), n) else {
         return 0;
-    }
+    };
     let lo = ((patch.min - rmin) / pixel).floor().max(DVec2::ZERO);
     let hi = ((patch.max - rmin) / pixel)
         .ceil()

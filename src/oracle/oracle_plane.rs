@@ -50,6 +50,14 @@ pub struct ProjectedOccluder {
 /// One Depth Map to rasterise: its side in pixels and its occluders.
 pub type MapJob<'a> = (usize, &'a [ProjectedOccluder]);
 
+/// The size of a pixel of an `n` x `n` map over the plane rectangle
+/// `rect`, or `None` when the rectangle has no area (or is not a number):
+/// such a map holds nothing.
+pub fn pixel_size((rmin, rmax): (DVec2, DVec2), n: usize) -> Option<DVec2> {
+    let pixel = (rmax - rmin) / n as f64;
+    (pixel.x > 0.0 && pixel.y > 0.0).then_some(pixel)
+}
+
 /// The CPU rasteriser: the `n` x `n` level-0 map (row `j` at `j * n..`)
 /// holding in each pixel the smallest Depth among the occluders whose
 /// Projection (intersection of views, computed exactly by clipping)

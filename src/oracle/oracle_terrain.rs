@@ -462,11 +462,10 @@ impl Terrain {
         slack: f64,
         level0: &mut [f64],
     ) -> usize {
-        let (rmin, rmax) = rect;
-        let pixel = (rmax - rmin) / n as f64;
-        if !(pixel.x > 0.0 && pixel.y > 0.0) {
+        let rmin = rect.0;
+        let Some(pixel) = super::oracle_plane::pixel_size(rect, n) else {
             return 0;
-        }
+        };
         let m = self.margin(slack);
         let at = frame.world(DVec3::new(0.0, 0.0, wp))[frame.axis];
         // Pixel `k`'s span along local `u` (k < n) or `v`.
