@@ -68,10 +68,10 @@ pub struct OracleFlags {
     /// closed (or floorless) solid, or goes on through the one hole such
     /// a cut leaves (a wall's door); at most this many shafts an object [0
     /// (off) to 1,000,000].
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
+    #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
     pub shaft_budget: u32,
     /// Shafts: the most cuts along one path [0 to 32].
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u8).range(0..=32))]
+    #[arg(long, default_value_t = 24, value_parser = clap::value_parser!(u8).range(0..=32))]
     pub shaft_depth: u8,
     /// Sealed rooms: the free space between the closed solids (walls,
     /// slabs, closed doors and windows) is cut into connected pieces over

@@ -203,8 +203,8 @@ impl Default for OracleParams {
             sweep_extension: 1.5,
             sweep_reach: 3,
             occludee_depth: 6,
-            shaft_budget: 512,
-            shaft_depth: 16,
+            shaft_budget: 4096,
+            shaft_depth: 24,
             seal_voxels: 1 << 24,
         }
     }

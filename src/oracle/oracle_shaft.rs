@@ -25,7 +25,15 @@
 //!   either way it meets `O`'s (watertight) surface strictly between `a`
 //!   and `b`. So one of the two boxes must be apart from `O`'s box (by the
 //!   tracer's rounding), and the crossings must lie inside `O` by that
-//!   rounding plus its convexity tolerance.
+//!   rounding plus its convexity tolerance. For a convex solid no common
+//!   plane is needed: each segment may pass through it anywhere. The
+//!   segments from `A` meeting a convex set `O'` (here `O` shrunk by the
+//!   margin) end in a convex set (for two ends `x1`, `x2` whose segments
+//!   from `a` meet `O'` at `y1`, `y2`, the segment from `a` to a point
+//!   between them crosses `[y1, y2]`, inside `O'`), and likewise in `a`
+//!   for a fixed end: so when the 64 segments between the boxes' corners
+//!   each meet `O'`, every segment from `A` to `B` does
+//!   ([`segments_through`]).
 //! - `O` a planar convex polygon: `P` is its plane and the crossing is on
 //!   it, inside it by the rounding plus the polygon's flatness tolerance,
 //!   over the smallest sine of a segment's angle to the plane: a grazing
@@ -38,9 +46,9 @@
 //! - `O` of the object itself is no proof (a hit on it is the object
 //!   seen), so an object's own occluders are skipped.
 //!
-//! The planes of a solid are at several depths along its thinnest face
-//! normals: a segment crossing a joint between two abutting wall boxes at
-//! the middle of the wall crosses one box or the other nearer a face.
+//! The cuts of a sliceable solid are at several depths across its box:
+//! a segment crossing a joint between two abutting walls at the middle of
+//! the wall crosses one or the other nearer a face.
 //! A shaft no occluder blocks is cut: the longer of the two boxes at its
 //! middle (an object's box along its tree of triangle clusters, whose
 //! boxes are tighter), each half a shaft of its own, until a depth or a
@@ -67,6 +75,8 @@
 //! both in a handful of shafts, where halving needed hundreds (a shaft
 //! straddling a door's edge is blocked by neither wall alone). A portal's
 //! search is capped at two shafts, paid out of the object's budget.
+
+use std::cmp::Ordering;
 
 use glam::{DVec2, DVec3};
 
@@ -97,17 +107,13 @@ const PORTAL_SHAFTS: usize = 2;
 /// the crossings' rectangle on its cut.
 const PORTAL_SHARE: f64 = 0.75;
 
-/// Where, across a solid's width along one of its face normals, its
-/// blocking planes lie (the middle first).
+/// Where, across a solid's box along each axis, its cuts lie (the
+/// middle first).
 const DEPTHS: [f64; 3] = [0.5, 0.15, 0.85];
-/// How many of a solid's face normals (its thinnest) give planes.
-const NORMALS: usize = 3;
-/// Two normals closer than this (1 - |cos|) are one.
-const PARALLEL: f64 = 1e-9;
 
-/// One occluder's blocking planes `(n, c)` (`n . p = c`, `n` a unit vector)
-/// and, for a polygon, the half-planes of its edges within its plane
-/// (`m . p <= e`, `m` outward and unit).
+/// A polygon's plane `(n, c)` (`n . p = c`, `n` a unit vector) and the
+/// half-planes of its edges within it (`m . p <= e`, `m` outward and
+/// unit); for a convex solid, two balls about a point inside it.
 #[derive(Clone, Debug, Default)]
 struct Blocker {
     planes: Vec<(DVec3, f64)>,
@@ -115,6 +121,45 @@ struct Blocker {
     /// A polygon's flatness tolerance (how far its corners may lie off its
     /// plane); 0 for a solid.
     flatness: f64,
+    /// A convex solid's ellipsoids, for quick answers before its planes.
+    balls: Option<Balls>,
+}
+
+/// Two ellipsoids about a point `centre` inside a convex solid, their
+/// axes along x, y and z with the half-widths of its box (`1 / inv`): in
+/// the coordinates `(x - centre) * inv`, where they are balls, every
+/// corner lies within `outer` of the origin, and a point within `k` lies
+/// inside every face plane (`n . x <= e`) by at least `(k - r) hmin`
+/// for `r` its distance from the origin (`hmin`, the least `|n / inv|`),
+/// so by the margin `m` when `r <= k - m / hmin`.
+#[derive(Clone, Copy, Debug)]
+struct Balls {
+    centre: DVec3,
+    inv: DVec3,
+    k: f64,
+    hmin: f64,
+    outer: f64,
+}
+
+impl Balls {
+    /// The distance, in the balls' coordinates, from the origin to the
+    /// segment `p -> p + d`.
+    fn distance(&self, p: DVec3, d: DVec3) -> f64 {
+        let (p, d) = ((p - self.centre) * self.inv, d * self.inv);
+        let dd = d.length_squared();
+        let t = if dd > 0.0 {
+            (-p.dot(d) / dd).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (p + d * t).length()
+    }
+
+    /// Whether a segment at [`Balls::distance`] `r` has a point inside
+    /// every plane by `margin`.
+    fn inside(&self, r: f64, margin: f64) -> bool {
+        r < self.k - margin / self.hmin
+    }
 }
 
 /// The shaft tests' view of the occluders, built once per scene.
@@ -145,6 +190,9 @@ struct CutSolid {
     open_bottom: Option<f64>,
     /// For a shell, the largest cell slack it may be used from.
     shell_slack: Option<f64>,
+    /// For a shell, its occluder (which blocks as the convex solid it is;
+    /// its cuts give portals).
+    shell: Option<u32>,
 }
 
 /// A [`BoxTree::for_segments`] made four wide for [`along_until`]: each
@@ -307,10 +355,11 @@ impl Shafts {
                 max: s.max,
                 open_bottom: s.open_bottom,
                 shell_slack: None,
+                shell: None,
             })
             .collect();
         let mut cuts: Vec<Vec<Cut>> = solids.iter().map(solid_cuts).collect();
-        for o in occluders {
+        for (i, o) in occluders.iter().enumerate() {
             if o.shell_slack.is_some() {
                 cut_solids.push(CutSolid {
                     object: o.object,
@@ -318,6 +367,7 @@ impl Shafts {
                     max: o.max,
                     open_bottom: None,
                     shell_slack: o.shell_slack,
+                    shell: Some(i as u32),
                 });
                 cuts.push(shell_cuts(o));
             }
@@ -393,7 +443,7 @@ impl Shafts {
         if let Some(k) = *hint {
             let blocked = match k.checked_sub(search.occluders.len()) {
                 None => self.blocks(search, k, a, (bmin, bmax)),
-                Some(solid) => self.cuts_block(search, solid, (a, from), (bmin, bmax)),
+                Some(solid) => self.solid_blocks(search, solid, (a, from), (bmin, bmax)),
             };
             if blocked {
                 return true;
@@ -412,7 +462,7 @@ impl Shafts {
             if o.object == object
                 || (search.skip)(o.object)
                 || !o.usable(search.slack)
-                || !meets(o, p, q)
+                || !meets(o, self.blockers[k].balls, p, q)
             {
                 return false;
             }
@@ -453,7 +503,7 @@ impl Shafts {
             met_solids.push(k);
             any = true;
             let hit =
-                Some(offset + k) != tried && self.cuts_block(search, k, (a, from), (bmin, bmax));
+                Some(offset + k) != tried && self.solid_blocks(search, k, (a, from), (bmin, bmax));
             if hit {
                 solid_found = Some(offset + k);
             }
@@ -580,6 +630,24 @@ impl Shafts {
         }
     }
 
+    /// Whether solid `k` (of those with cuts) blocks every segment from
+    /// box `a.0` to box `b` (through box `a.1` first, when `a.0` is a
+    /// portal): a shell as the convex solid it is (a segment from the
+    /// portal on is one from `a.0` to `b`, and its cuts' test is one of
+    /// the segments' points inside it), a sliceable solid by its cuts.
+    fn solid_blocks(
+        &self,
+        search: &Search,
+        k: usize,
+        a: ((DVec3, DVec3), Option<(DVec3, DVec3)>),
+        b: (DVec3, DVec3),
+    ) -> bool {
+        match self.cut_solids[k].shell {
+            Some(o) => self.blocks(search, o as usize, a.0, b),
+            None => self.cuts_block(search, k, a, b),
+        }
+    }
+
     /// Whether a cut of sliceable solid `k` blocks every segment from box
     /// `a.0` to box `b` (through box `a.1` first, when `a.0` is a portal):
     /// the plane separates them, the rectangle of the crossings (of the 64
@@ -700,8 +768,15 @@ impl Shafts {
         let pad = DVec3::splat(slack);
         let apart =
             |(lo, hi): (DVec3, DVec3)| hi.cmplt(o.min - pad).any() || lo.cmpgt(o.max + pad).any();
-        if o.solid && !apart(a) && !apart(b) {
-            return false;
+        if o.solid {
+            return (apart(a) || apart(b))
+                && segments_through(
+                    o,
+                    self.blockers[k].balls,
+                    a,
+                    b,
+                    slack + 16.0 * o.tolerance(),
+                );
         }
         let blocker = &self.blockers[k];
         blocker
@@ -866,6 +941,66 @@ fn crossings_inside(
     all_inside(margin)
 }
 
+/// Whether every segment from box `a` to box `b` passes through the
+/// inside of convex solid `o` by `margin` (a point of it inside every
+/// face plane by that much).
+fn segments_through(
+    o: &Occluder,
+    balls: Option<Balls>,
+    a: (DVec3, DVec3),
+    b: (DVec3, DVec3),
+    margin: f64,
+) -> bool {
+    // The interval of `t` inside every plane by a hair more than the
+    // margin: its points, rounded, are inside by the margin (the margin,
+    // at least the tracer's f32 rounding of the coordinates, is 2^20 times
+    // more than f64's rounding of the plane distances).
+    let inside = margin * (1.0 + 1.0 / 1_048_576.0);
+    let (ca, cb) = (corners(a.0, a.1), corners(b.0, b.1));
+    ca.iter().all(|&p| {
+        cb.iter().all(|&q| {
+            let d = q - p;
+            if let Some(balls) = balls {
+                // Outside the outer ball: the segment misses the solid.
+                // Near enough the centre: its nearest point to it is
+                // inside every plane by the margin.
+                let r = balls.distance(p, d);
+                if r > balls.outer {
+                    return false;
+                }
+                if balls.inside(r, margin) {
+                    return true;
+                }
+            }
+            clips_inside(&o.planes, p, d, inside)
+        })
+    })
+}
+
+/// Whether the segment `p -> p + d` has a point inside every plane
+/// `n . x <= e` of `planes` by `margin` (the segment clipped by each in
+/// turn).
+fn clips_inside(planes: &[(DVec3, f64)], p: DVec3, d: DVec3, margin: f64) -> bool {
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for &(n, e) in planes {
+        let (sp, sd) = (n.dot(p) - (e - margin), n.dot(d));
+        if sd == 0.0 {
+            if sp > 0.0 {
+                return false;
+            }
+        } else if sd > 0.0 {
+            t1 = t1.min(-sp / sd);
+        } else {
+            t0 = t0.max(-sp / sd);
+        }
+        // (No number, from a coordinate that is none: no proof.)
+        if !matches!(t0.partial_cmp(&t1), Some(Ordering::Less | Ordering::Equal)) {
+            return false;
+        }
+    }
+    true
+}
+
 /// The smallest sine of the angle between the plane of normal `n` (a unit
 /// vector) and a segment from a corner of `ca` to one of `cb`.
 fn min_sine(n: DVec3, ca: &[DVec3; 8], cb: &[DVec3; 8]) -> f64 {
@@ -904,26 +1039,19 @@ fn axis_min_sine(axis: usize, a: (DVec3, DVec3), b: (DVec3, DVec3)) -> f64 {
 
 /// Whether the segment `p -> q` meets occluder `o` (a solid's inside, a
 /// polygon's plane inside its corners' hull): a guide, not a proof.
-fn meets(o: &Occluder, p: DVec3, q: DVec3) -> bool {
+fn meets(o: &Occluder, balls: Option<Balls>, p: DVec3, q: DVec3) -> bool {
     let d = q - p;
-    if o.solid {
-        let (mut t0, mut t1) = (0.0f64, 1.0f64);
-        for &(n, c) in &o.planes {
-            let (sp, sd) = (n.dot(p) - c, n.dot(d));
-            if sd == 0.0 {
-                if sp > 0.0 {
-                    return false;
-                }
-            } else if sd > 0.0 {
-                t1 = t1.min(-sp / sd);
-            } else {
-                t0 = t0.max(-sp / sd);
-            }
-            if t0 > t1 {
-                return false;
-            }
+    if let Some(balls) = balls {
+        let r = balls.distance(p, d);
+        if r > balls.outer {
+            return false;
         }
-        return true;
+        if balls.inside(r, 0.0) {
+            return true;
+        }
+    }
+    if o.solid {
+        return clips_inside(&o.planes, p, d, 0.0);
     }
     if o.points.len() < 3 {
         return false;
@@ -1332,43 +1460,11 @@ fn outward(min: DVec3, max: DVec3) -> Aabb {
 /// An occluder's blocking planes (and a polygon's edges).
 fn blocker(o: &Occluder) -> Blocker {
     if o.solid {
-        // Distinct face normals with the solid's width along each; for a
-        // convex shell, whose hundreds of faces turn a little each, the
-        // three axes instead (its cross-sections, wide whichever way a
-        // shaft runs).
-        let mut normals: Vec<(f64, DVec3, f64, f64)> = Vec::new();
-        let axes = [DVec3::X, DVec3::Y, DVec3::Z].map(|n| (n, 0.0));
-        let faces: &[(DVec3, f64)] = if o.shell_slack.is_some() {
-            &axes
-        } else {
-            &o.planes
-        };
-        for &(n, _) in faces {
-            if normals
-                .iter()
-                .any(|&(_, m, _, _)| 1.0 - n.dot(m).abs() < PARALLEL)
-            {
-                continue;
-            }
-            let (lo, hi) = o
-                .points
-                .iter()
-                .map(|&p| n.dot(p))
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
-                    (a.min(x), b.max(x))
-                });
-            normals.push((hi - lo, n, lo, hi));
-        }
-        normals.sort_by(|x, y| x.0.total_cmp(&y.0));
-        let planes = normals
-            .iter()
-            .take(NORMALS)
-            .flat_map(|&(_, n, lo, hi)| DEPTHS.iter().map(move |&f| (n, lo + f * (hi - lo))))
-            .collect();
+        // A solid is tested segment by segment against its face planes
+        // ([`segments_through`]), its balls first.
         return Blocker {
-            planes,
-            edges: Vec::new(),
-            flatness: 0.0,
+            balls: balls(o),
+            ..Blocker::default()
         };
     }
     let p = &o.points;
@@ -1402,7 +1498,48 @@ fn blocker(o: &Occluder) -> Blocker {
         planes: vec![(n, c)],
         edges,
         flatness,
+        balls: None,
     }
+}
+
+/// A convex solid's ellipsoids ([`Balls`]) about the mean of its
+/// corners; `None` for a solid without planes or of no width along an
+/// axis.
+fn balls(o: &Occluder) -> Option<Balls> {
+    if o.points.is_empty() || o.planes.is_empty() {
+        return None;
+    }
+    let centre = o.points.iter().fold(DVec3::ZERO, |a, &p| a + p) / o.points.len() as f64;
+    let half = 0.5 * (o.max - o.min);
+    if !half.is_finite() || half.cmple(DVec3::ZERO).any() {
+        return None;
+    }
+    let inv = half.recip();
+    let outer = o
+        .points
+        .iter()
+        .map(|&p| ((p - centre) * inv).length())
+        .fold(0.0, f64::max);
+    // A plane `n . x <= e` is, in the balls' coordinates `y`,
+    // `(n / inv) . y <= e - n . centre`: the ball of radius `k` lies inside
+    // it by `(e - n . centre) - k |n / inv|`.
+    let (mut k, mut hmin) = (f64::INFINITY, f64::INFINITY);
+    for &(n, e) in &o.planes {
+        let h = (n * half).length();
+        k = k.min((e - n.dot(centre)) / h);
+        hmin = hmin.min(h);
+    }
+    // A hair for the rounding of these sums (the distances are of order 1
+    // here; the margins they are compared with, the tracer's f32 rounding,
+    // far more).
+    const HAIR: f64 = 1e-9;
+    (outer.is_finite() && k.is_finite() && hmin > 0.0).then_some(Balls {
+        centre,
+        inv,
+        k: k - HAIR,
+        hmin,
+        outer: outer + HAIR,
+    })
 }
 
 #[cfg(test)]
@@ -1642,6 +1779,165 @@ mod tests {
         // The cell inside, the object beyond it: the segments leave it.
         let (qmin, qmax) = (DVec3::new(12.0, 0.0, 0.0), DVec3::new(13.0, 1.0, 1.0));
         assert!(shafts.hidden(&search(&around, &no), 0, &[], CELL, qmin, qmax));
+    }
+
+    /// A convex solid given by its corners and outward face planes.
+    fn convex(object: u32, points: Vec<DVec3>, planes: Vec<(DVec3, f64)>) -> Occluder {
+        let mut o = Occluder::test_box(object, DVec3::ZERO, DVec3::ONE);
+        (o.min, o.max) = points
+            .iter()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), &p| {
+                (a.min(p), b.max(p))
+            });
+        o.points = points;
+        o.planes = planes;
+        o
+    }
+
+    /// A prism along z (z in [-5, 5]) over a rhombus long in x: (2, 0.5),
+    /// (5, -0.2), (8, 0.5), (5, 1.2).
+    fn rhombus_prism() -> Occluder {
+        let footprint = [
+            DVec2::new(2.0, 0.5),
+            DVec2::new(5.0, -0.2),
+            DVec2::new(8.0, 0.5),
+            DVec2::new(5.0, 1.2),
+        ];
+        let mut points = Vec::new();
+        let mut planes = Vec::new();
+        for i in 0..4 {
+            let (u, v) = (footprint[i], footprint[(i + 1) % 4]);
+            points.push(u.extend(-5.0));
+            points.push(u.extend(5.0));
+            // Counter-clockwise around the footprint: outward is to the
+            // right of the edge.
+            let n = DVec3::new(v.y - u.y, u.x - v.x, 0.0).normalize();
+            planes.push((n, n.dot(u.extend(0.0))));
+        }
+        planes.push((DVec3::Z, 5.0));
+        planes.push((-DVec3::Z, 5.0));
+        convex(1, points, planes)
+    }
+
+    /// Segments from the unit cell to a box beyond the rhombus prism pass
+    /// through it at different depths (those along y = 0 near x = 5 only,
+    /// those along a diagonal anywhere between): no one plane holds all
+    /// their crossings inside it, but each passes through it, so one shaft
+    /// suffices. Checked with segments between random points.
+    #[test]
+    fn a_convex_solid_blocks_segments_that_cross_it_at_different_depths() {
+        let prism = vec![rhombus_prism()];
+        let no = |_: u32| false;
+        let shafts = Shafts::new(&prism, &[]);
+        let one = Search {
+            budget: 1,
+            depth: 0,
+            ..search(&prism, &no)
+        };
+        let (qmin, qmax) = (DVec3::new(9.5, 0.0, 0.0), DVec3::new(10.0, 1.0, 1.0));
+        assert!(shafts.hidden(&one, 0, &[], CELL, qmin, qmax));
+        // What the shaft claims, by segments: each meets the rhombus.
+        let mut rng = Pcg64::seed_from_u64(11);
+        let inside = |x: DVec3| prism[0].planes.iter().all(|&(n, e)| n.dot(x) <= e);
+        for _ in 0..2_000 {
+            let p = DVec3::new(rng.random(), rng.random(), rng.random());
+            let q = qmin + (qmax - qmin) * DVec3::new(rng.random(), rng.random(), rng.random());
+            assert!(
+                (0..=1_000).any(|i| inside(p + (q - p) * (i as f64 / 1_000.0))),
+                "{p} -> {q} misses the prism"
+            );
+        }
+        // Beside it, or reaching in front of it: not hidden.
+        for (qmin, qmax) in [
+            (DVec3::new(9.5, 2.0, 0.0), DVec3::new(10.0, 3.0, 1.0)),
+            (DVec3::new(1.5, 0.0, 0.0), DVec3::new(10.0, 1.0, 1.0)),
+        ] {
+            assert!(!shafts.hidden(&search(&prism, &no), 0, &[], CELL, qmin, qmax));
+        }
+    }
+
+    /// The segment test's ellipsoids only shortcut its planes: random
+    /// convex solids (boxes turned at random, with their corners) and
+    /// boxes on either side give the same answers with and without them,
+    /// and whenever the answer is yes, segments between random points of
+    /// the boxes pass inside every plane by the margin.
+    #[test]
+    fn the_ellipsoids_answer_as_the_planes_do() {
+        let mut rng = Pcg64::seed_from_u64(12);
+        let (mut yes, mut quick) = (0, 0);
+        for _ in 0..3_000 {
+            // A box of half-sizes `h` turned by a random rotation about
+            // `c`.
+            let c = DVec3::new(5.0, 0.0, 0.0)
+                + DVec3::new(rng.random(), rng.random(), rng.random()) * 2.0
+                - DVec3::ONE;
+            let h = DVec3::new(rng.random(), rng.random(), rng.random()) * 2.0 + DVec3::splat(0.3);
+            let r = glam::DQuat::from_euler(
+                glam::EulerRot::XYZ,
+                rng.random::<f64>() * 6.3,
+                rng.random::<f64>() * 6.3,
+                rng.random::<f64>() * 6.3,
+            );
+            let axes = [r * DVec3::X, r * DVec3::Y, r * DVec3::Z];
+            let mut planes = Vec::new();
+            for (i, &n) in axes.iter().enumerate() {
+                planes.push((n, n.dot(c) + h[i]));
+                planes.push((-n, -n.dot(c) + h[i]));
+            }
+            let points: Vec<DVec3> = (0..8)
+                .map(|k| {
+                    (0..3).fold(c, |x, i| {
+                        x + axes[i] * h[i] * if k >> i & 1 == 1 { 1.0 } else { -1.0 }
+                    })
+                })
+                .collect();
+            let o = convex(1, points, planes);
+            let part = |rng: &mut Pcg64, x: f64| {
+                let lo = DVec3::new(x, -2.0, -2.0)
+                    + DVec3::new(rng.random(), rng.random(), rng.random()) * 3.0;
+                (
+                    lo,
+                    lo + DVec3::new(rng.random(), rng.random(), rng.random()) * 0.8,
+                )
+            };
+            let (a, b) = (part(&mut rng, -1.0), part(&mut rng, 9.0));
+            let margin = 0.05;
+            let with = segments_through(&o, balls(&o), a, b, margin);
+            let without = segments_through(&o, None, a, b, margin);
+            assert_eq!(with, without, "{a:?} {b:?} {o:?}");
+            let ball = balls(&o).expect("a box has its ellipsoids");
+            if with {
+                yes += 1;
+                let (ca, cb) = (corners(a.0, a.1), corners(b.0, b.1));
+                if ca.iter().all(|&p| {
+                    cb.iter()
+                        .all(|&q| ball.inside(ball.distance(p, q - p), margin))
+                }) {
+                    quick += 1;
+                }
+                for _ in 0..200 {
+                    let p =
+                        a.0 + (a.1 - a.0) * DVec3::new(rng.random(), rng.random(), rng.random());
+                    let q =
+                        b.0 + (b.1 - b.0) * DVec3::new(rng.random(), rng.random(), rng.random());
+                    let deepest = (0..=2_000)
+                        .map(|i| {
+                            let x = p + (q - p) * (i as f64 / 2_000.0);
+                            o.planes
+                                .iter()
+                                .map(|&(n, e)| e - n.dot(x))
+                                .fold(f64::INFINITY, f64::min)
+                        })
+                        .fold(f64::NEG_INFINITY, f64::max);
+                    // (The sampling along the segment may miss the best
+                    // point by a step's share of a plane distance.)
+                    assert!(deepest >= margin - 0.01, "{p} -> {q}: {deepest}");
+                }
+            }
+        }
+        // Both kinds of answers, and the ellipsoids alone giving some.
+        assert!(yes > 30 && yes < 2_970, "{yes} of 3,000 blocked");
+        assert!(quick > 0, "no answer from the ellipsoids alone");
     }
 
     #[test]

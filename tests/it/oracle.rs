@@ -1243,10 +1243,11 @@ fn the_groves_crowns_hide_as_convex_shells() {
 /// closed shells of separate leaf triangles, a small cell on the trail
 /// sees few trees, and the leaves fuse only through many thin sweep
 /// steps. Each plane also taking the reprojections of the planes 2, 4, 8
-/// and 16 back proves more hidden than the chain alone (fewer more since
-/// the crowns hide as convex shells, stop 45: 155 against 149, where it
-/// was 98 against 81), and rays, random and aimed at every hidden object,
-/// agree. Here it hides a superset of what the chain hides, as on every
+/// and 16 back proves more hidden than the chain alone, and rays, random
+/// and aimed at every hidden object, agree. The shafts are off: since
+/// they test convex shells segment by segment and search deeper (stop
+/// 48) they prove all that reaching back adds here (206 hidden either
+/// way); without them 96 against 80. Here it hides a superset of what the chain hides, as on every
 /// cell measured; that is not certain in general (a plane the chain
 /// leaves empty, and skips, then holds reprojections, which shifts which
 /// planes are 1, 2, 4, ... back and which two planes an object is tested
@@ -1262,6 +1263,7 @@ fn the_sweep_reaching_back_fuses_the_groves_crowns() {
         let params = OracleParams {
             sweep_planes: 16,
             sweep_reach: reach,
+            shaft_budget: 0,
             ..OracleParams::default()
         };
         Oracle::new(&scene, params, Rasteriser::cpu()).unwrap()
@@ -1277,7 +1279,7 @@ fn the_sweep_reaching_back_fuses_the_groves_crowns() {
         "reaching back lost a proof"
     );
     assert!(
-        hb.len() > ha.len() && hb.len() >= n / 4,
+        hb.len() > ha.len() && hb.len() >= n / 5,
         "{} hidden reaching back, {} by the chain, of {n}",
         hb.len(),
         ha.len()
