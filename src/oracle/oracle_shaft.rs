@@ -782,7 +782,7 @@ impl Shafts {
         blocker
             .planes
             .iter()
-            .any(|&(n, c)| crossings_inside(o, blocker, n, c, a, b, slack))
+            .any(|&(n, c)| crossings_inside(blocker, n, c, a, b, slack))
     }
 }
 
@@ -886,11 +886,10 @@ fn along_until(tree: &SegmentTree, p: DVec3, q: DVec3, visit: &mut dyn FnMut(u32
     found
 }
 
-/// Whether the plane `n . p = c` separates boxes `a` and `b` (by more than
-/// `slack`) and every crossing of a segment between their corners lies
-/// inside occluder `o`.
+/// Whether the plane `n . p = c` of polygon `o` separates boxes `a` and
+/// `b` (by more than `slack`) and every crossing of a segment between
+/// their corners lies inside the polygon.
 fn crossings_inside(
-    o: &Occluder,
     blocker: &Blocker,
     n: DVec3,
     c: f64,
@@ -909,7 +908,7 @@ fn crossings_inside(
         return false;
     }
     let (ca, cb) = (corners(a.0, a.1), corners(b.0, b.1));
-    let half_planes = if o.solid { &o.planes } else { &blocker.edges };
+    let half_planes = &blocker.edges;
     let all_inside = |margin: f64| {
         ca.iter().all(|&p| {
             let sp = n.dot(p) - c;
@@ -920,25 +919,20 @@ fn crossings_inside(
             })
         })
     };
-    // Most tries fail: for a polygon, a first pass without the margin
-    // (which is never negative, so `e - margin <= e` and this pass is
-    // passed by every crossing the real test passes) turns them away
-    // before the margin's 64 square roots are paid for.
-    if !o.solid && !all_inside(0.0) {
+    // Most tries fail: a first pass without the margin (which is never
+    // negative, so `e - margin <= e` and this pass is passed by every
+    // crossing the real test passes) turns them away before the margin's
+    // 64 square roots are paid for.
+    if !all_inside(0.0) {
         return false;
     }
-    // A polygon's margin: the tracer's rounding moves a ray by up to the
-    // slack across its line, and a bent polygon's triangles lie up to its
+    // The margin: the tracer's rounding moves a ray by up to the slack
+    // across its line, and a bent polygon's triangles lie up to its
     // flatness off the plane; along the plane either moves the crossing by
     // that over the sine of the ray's angle to it (at its smallest over
     // the shaft at a corner pair: the share of a direction along the
     // normal is quasi-concave over the box of directions `B - A`).
-    let margin = if o.solid {
-        slack + 16.0 * o.tolerance()
-    } else {
-        (slack + blocker.flatness) / min_sine(n, &ca, &cb)
-    };
-    all_inside(margin)
+    all_inside((slack + blocker.flatness) / min_sine(n, &ca, &cb))
 }
 
 /// Whether every segment from box `a` to box `b` passes through the
@@ -1529,9 +1523,12 @@ fn balls(o: &Occluder) -> Option<Balls> {
         k = k.min((e - n.dot(centre)) / h);
         hmin = hmin.min(h);
     }
-    // A hair for the rounding of these sums (the distances are of order 1
-    // here; the margins they are compared with, the tracer's f32 rounding,
-    // far more).
+    // A hair for the rounding of these sums and of `distance`: in these
+    // coordinates the corners lie within a few units of the origin and `k`
+    // is about 1 at most, so f64 rounds each by some 10^-15 and
+    // the hair is a million times that; the accept's other term, `margin
+    // / hmin`, is at least the tracer's f32 rounding of the scene's
+    // coordinates over the solid's half-width, far above the hair too.
     const HAIR: f64 = 1e-9;
     (outer.is_finite() && k.is_finite() && hmin > 0.0).then_some(Balls {
         centre,
