@@ -113,7 +113,7 @@ const DEPTHS: [f64; 3] = [0.5, 0.15, 0.85];
 
 /// A polygon's plane `(n, c)` (`n . p = c`, `n` a unit vector) and the
 /// half-planes of its edges within it (`m . p <= e`, `m` outward and
-/// unit); for a convex solid, two balls about a point inside it.
+/// unit); for a convex solid, its ellipsoids ([`Balls`]).
 #[derive(Clone, Debug, Default)]
 struct Blocker {
     planes: Vec<(DVec3, f64)>,
@@ -141,10 +141,14 @@ struct Balls {
     outer: f64,
 }
 
+/// The share of a length, in the balls' coordinates, by which f64 may
+/// have rounded a distance computed from it (some 10^-15 in truth).
+const ROUNDING: f64 = 1e-12;
+
 impl Balls {
     /// The distance, in the balls' coordinates, from the origin to the
-    /// segment `p -> p + d`.
-    fn distance(&self, p: DVec3, d: DVec3) -> f64 {
+    /// segment `p -> p + d`, and a bound on its rounding.
+    fn distance(&self, p: DVec3, d: DVec3) -> (f64, f64) {
         let (p, d) = ((p - self.centre) * self.inv, d * self.inv);
         let dd = d.length_squared();
         let t = if dd > 0.0 {
@@ -152,13 +156,20 @@ impl Balls {
         } else {
             0.0
         };
-        (p + d * t).length()
+        let rounding = ROUNDING * (1.0 + p.length() + d.length());
+        ((p + d * t).length(), rounding)
     }
 
-    /// Whether a segment at [`Balls::distance`] `r` has a point inside
-    /// every plane by `margin`.
-    fn inside(&self, r: f64, margin: f64) -> bool {
-        r < self.k - margin / self.hmin
+    /// Whether a segment at [`Balls::distance`] `(r, rounding)` misses the
+    /// solid.
+    fn outside(&self, (r, rounding): (f64, f64)) -> bool {
+        r - rounding > self.outer
+    }
+
+    /// Whether a segment at [`Balls::distance`] `(r, rounding)` has a
+    /// point inside every plane by `margin`.
+    fn inside(&self, (r, rounding): (f64, f64), margin: f64) -> bool {
+        r + rounding < self.k - margin / self.hmin
     }
 }
 
@@ -886,9 +897,9 @@ fn along_until(tree: &SegmentTree, p: DVec3, q: DVec3, visit: &mut dyn FnMut(u32
     found
 }
 
-/// Whether the plane `n . p = c` of polygon `o` separates boxes `a` and
-/// `b` (by more than `slack`) and every crossing of a segment between
-/// their corners lies inside the polygon.
+/// Whether the plane `n . p = c` of a polygon (`blocker`) separates boxes
+/// `a` and `b` (by more than `slack`) and every crossing of a segment
+/// between their corners lies inside the polygon.
 fn crossings_inside(
     blocker: &Blocker,
     n: DVec3,
@@ -946,9 +957,10 @@ fn segments_through(
     margin: f64,
 ) -> bool {
     // The interval of `t` inside every plane by a hair more than the
-    // margin: its points, rounded, are inside by the margin (the margin,
-    // at least the tracer's f32 rounding of the coordinates, is 2^20 times
-    // more than f64's rounding of the plane distances).
+    // margin: its points, rounded, are inside by the margin (a 2^-20 share
+    // of the margin, which is at least the tracer's f32 rounding of the
+    // coordinates, is still thousands of times f64's rounding of a plane
+    // distance).
     let inside = margin * (1.0 + 1.0 / 1_048_576.0);
     let (ca, cb) = (corners(a.0, a.1), corners(b.0, b.1));
     ca.iter().all(|&p| {
@@ -959,7 +971,7 @@ fn segments_through(
                 // Near enough the centre: its nearest point to it is
                 // inside every plane by the margin.
                 let r = balls.distance(p, d);
-                if r > balls.outer {
+                if balls.outside(r) {
                     return false;
                 }
                 if balls.inside(r, margin) {
@@ -1037,7 +1049,7 @@ fn meets(o: &Occluder, balls: Option<Balls>, p: DVec3, q: DVec3) -> bool {
     let d = q - p;
     if let Some(balls) = balls {
         let r = balls.distance(p, d);
-        if r > balls.outer {
+        if balls.outside(r) {
             return false;
         }
         if balls.inside(r, 0.0) {
@@ -1516,26 +1528,24 @@ fn balls(o: &Occluder) -> Option<Balls> {
         .fold(0.0, f64::max);
     // A plane `n . x <= e` is, in the balls' coordinates `y`,
     // `(n / inv) . y <= e - n . centre`: the ball of radius `k` lies inside
-    // it by `(e - n . centre) - k |n / inv|`.
+    // it by `(e - n . centre) - k |n / inv|`. Each plane's gap is taken
+    // less a bound on its rounding (of the coordinates' size: a solid far
+    // from the origin loses digits here), and `hmin` a hair smaller, so
+    // that the accept errs on the side of the planes.
     let (mut k, mut hmin) = (f64::INFINITY, f64::INFINITY);
     for &(n, e) in &o.planes {
         let h = (n * half).length();
-        k = k.min((e - n.dot(centre)) / h);
+        let nc = n.dot(centre);
+        let gap = (e - nc) - ROUNDING * (e.abs() + nc.abs());
+        k = k.min(gap / h);
         hmin = hmin.min(h);
     }
-    // A hair for the rounding of these sums and of `distance`: in these
-    // coordinates the corners lie within a few units of the origin and `k`
-    // is about 1 at most, so f64 rounds each by some 10^-15 and
-    // the hair is a million times that; the accept's other term, `margin
-    // / hmin`, is at least the tracer's f32 rounding of the scene's
-    // coordinates over the solid's half-width, far above the hair too.
-    const HAIR: f64 = 1e-9;
     (outer.is_finite() && k.is_finite() && hmin > 0.0).then_some(Balls {
         centre,
         inv,
-        k: k - HAIR,
-        hmin,
-        outer: outer + HAIR,
+        k,
+        hmin: hmin * (1.0 - ROUNDING),
+        outer,
     })
 }
 
