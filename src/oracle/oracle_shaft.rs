@@ -1529,14 +1529,15 @@ fn balls(o: &Occluder) -> Option<Balls> {
     // A plane `n . x <= e` is, in the balls' coordinates `y`,
     // `(n / inv) . y <= e - n . centre`: the ball of radius `k` lies inside
     // it by `(e - n . centre) - k |n / inv|`. Each plane's gap is taken
-    // less a bound on its rounding (of the coordinates' size: a solid far
-    // from the origin loses digits here), and `hmin` a hair smaller, so
+    // less a bound on its rounding (of the coordinates' size, not the
+    // gap's: a solid far from the origin loses digits in `n . centre`
+    // even where the product is small), and `hmin` a hair smaller, so
     // that the accept errs on the side of the planes.
+    let size = centre.abs().element_sum();
     let (mut k, mut hmin) = (f64::INFINITY, f64::INFINITY);
     for &(n, e) in &o.planes {
         let h = (n * half).length();
-        let nc = n.dot(centre);
-        let gap = (e - nc) - ROUNDING * (e.abs() + nc.abs());
+        let gap = (e - n.dot(centre)) - ROUNDING * (e.abs() + size);
         k = k.min(gap / h);
         hmin = hmin.min(h);
     }
@@ -1864,18 +1865,27 @@ mod tests {
     }
 
     /// The segment test's ellipsoids only shortcut its planes: random
-    /// convex solids (boxes turned at random, with their corners) and
-    /// boxes on either side give the same answers with and without them,
+    /// convex solids (boxes turned at random, with their corners, near
+    /// the origin and 10^5 from it) and boxes on either side give the
+    /// same answers with and without them,
     /// and whenever the answer is yes, segments between random points of
     /// the boxes pass inside every plane by the margin.
     #[test]
     fn the_ellipsoids_answer_as_the_planes_do() {
         let mut rng = Pcg64::seed_from_u64(12);
         let (mut yes, mut quick) = (0, 0);
-        for _ in 0..3_000 {
+        for trial in 0..3_000 {
+            // Half of them far from the origin, where `n . centre` loses
+            // digits.
+            let far = if trial % 2 == 0 {
+                DVec3::ZERO
+            } else {
+                DVec3::new(1e5, -5e4, 2e4)
+            };
             // A box of half-sizes `h` turned by a random rotation about
             // `c`.
-            let c = DVec3::new(5.0, 0.0, 0.0)
+            let c = far
+                + DVec3::new(5.0, 0.0, 0.0)
                 + DVec3::new(rng.random(), rng.random(), rng.random()) * 2.0
                 - DVec3::ONE;
             let h = DVec3::new(rng.random(), rng.random(), rng.random()) * 2.0 + DVec3::splat(0.3);
@@ -1900,7 +1910,8 @@ mod tests {
                 .collect();
             let o = convex(1, points, planes);
             let part = |rng: &mut Pcg64, x: f64| {
-                let lo = DVec3::new(x, -2.0, -2.0)
+                let lo = far
+                    + DVec3::new(x, -2.0, -2.0)
                     + DVec3::new(rng.random(), rng.random(), rng.random()) * 3.0;
                 (
                     lo,
