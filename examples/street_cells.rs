@@ -58,7 +58,7 @@ use vis5d::shrink::{ShrinkOracle, ShrinkParams};
 use vis5d::slices::SlicedScene;
 use vis5d::trace::{Ray, Tracer};
 
-const USAGE: &str = "usage: street_cells MODEL CELLS SIZE [--height H] [--rooms] [--anywhere] [--rays N] [--aimed N] [--split K]\n  [--seed S] [--gpu] [--list] [--method extended|shrink|both] [--slices N]\n  [--sweep-planes N] [--sweep-patches N] [--sweep-reach N] [--sweep-extension X]\n  [--occludee-depth N] [--shaft-budget N] [--shaft-depth N] [--seal-voxels N]";
+const USAGE: &str = "usage: street_cells MODEL CELLS SIZE [--height H] [--rooms] [--anywhere] [--rays N] [--aimed N] [--split K]\n  [--seed S] [--gpu] [--list] [--method extended|shrink|both] [--slices N]\n  [--sweep-planes N] [--sweep-patches N] [--sweep-reach N] [--sweep-extension X]\n  [--occludee-depth N] [--shaft-budget N] [--shaft-depth N] [--seal-voxels N]\n  [--resolution N] [--planes-per-face N] [--plane-candidates N] [--max-occluders N]";
 
 /// The command line.
 struct Args {
@@ -157,6 +157,26 @@ fn parse() -> Result<Args, String> {
                 args.params.shaft_budget = value("--shaft-budget")?
                     .parse()
                     .map_err(|_| "--shaft-budget must be a count")?
+            }
+            "--resolution" => {
+                args.params.resolution = value("--resolution")?
+                    .parse()
+                    .map_err(|_| "--resolution must be a count")?
+            }
+            "--planes-per-face" => {
+                args.params.planes_per_face = value("--planes-per-face")?
+                    .parse()
+                    .map_err(|_| "--planes-per-face must be a count")?
+            }
+            "--plane-candidates" => {
+                args.params.plane_candidates = value("--plane-candidates")?
+                    .parse()
+                    .map_err(|_| "--plane-candidates must be a count")?
+            }
+            "--max-occluders" => {
+                args.params.max_occluders = value("--max-occluders")?
+                    .parse()
+                    .map_err(|_| "--max-occluders must be a count")?
             }
             "--shaft-depth" => {
                 args.params.shaft_depth = value("--shaft-depth")?
