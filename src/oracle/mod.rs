@@ -151,7 +151,11 @@ pub struct OracleParams {
     /// objects the chosen ones do not (the paper used one).
     pub planes_per_face: usize,
     /// Occlusion sweep (sec. 5): planes per face spaced geometrically from
-    /// the nearest occluder to the farthest (0: none).
+    /// the nearest occluder to the farthest (0: none). With the shafts on
+    /// (`shaft_budget` > 0) the sweep runs only in cells whose slices are
+    /// culled ([`Oracle::cell_slices`]): there it hides no whole object the
+    /// shafts do not prove, and cost 12-45% of a cell's time
+    /// (notes/oracle.md, stop 49).
     pub sweep_planes: usize,
     /// Occlusion sweep: planes per face at the axis-aligned patches
     /// (floors, slabs, walls) that subtend the largest solid angles from
@@ -519,7 +523,7 @@ impl<'a> Oracle<'a> {
     ) -> Vec<CellReport> {
         let prepared: Vec<Prepared> = cells
             .par_iter()
-            .map(|(cell, hidden)| self.prepare(cell, *hidden))
+            .map(|(cell, hidden)| self.prepare(cell, *hidden, self.shafts.is_none()))
             .collect();
         let n = self.params.resolution;
         let (mut jobs, mut counts) = (Vec::new(), Vec::with_capacity(prepared.len()));
@@ -612,7 +616,11 @@ impl<'a> Oracle<'a> {
         rasterise: &mut dyn FnMut(&[MapJob]) -> Vec<Vec<f64>>,
         sliced: Option<&SlicedScene>,
     ) -> CellReport {
-        match self.prepare(cell, parent_hidden) {
+        // With the shafts on, the sweep hides no whole object they do not
+        // prove (notes/oracle.md, stop 49): it runs only where the slices
+        // of the objects kept are culled, which the shafts do not test.
+        let sweep = self.shafts.is_none() || sliced.is_some();
+        match self.prepare(cell, parent_hidden, sweep) {
             Prepared::Done(report) => *report,
             Prepared::Maps(pending) => {
                 let start = Instant::now();
@@ -626,8 +634,8 @@ impl<'a> Oracle<'a> {
     /// A cell's proof up to its Depth Maps: the free space, the solids it
     /// reaches into, each face's plane placement and sweep plan, and every
     /// map's occluders projected; or the whole report when there is nothing
-    /// to rasterise.
-    fn prepare(&self, cell: &Aabb, parent_hidden: Option<&ObjectSet>) -> Prepared {
+    /// to rasterise. `sweep`: whether the occlusion sweep may run.
+    fn prepare(&self, cell: &Aabb, parent_hidden: Option<&ObjectSet>, sweep: bool) -> Prepared {
         let objects = self.scene.objects().len();
         let (cmin, cmax) = (cell.min.as_dvec3(), cell.max.as_dvec3());
         if !(cmin.is_finite() && cmax.is_finite() && cmin.cmple(cmax).all()) {
@@ -762,7 +770,11 @@ impl<'a> Oracle<'a> {
                 .filter_map(|&frame| {
                     let mut t = CellTimes::default();
                     let (chosen, face) = self.plane(frame, cmin, cmax, parent_hidden, &mut t)?;
-                    let steps = self.sweep_plan(frame, cmin, cmax, &face, &mut t);
+                    let steps = if sweep {
+                        self.sweep_plan(frame, cmin, cmax, &face, &mut t)
+                    } else {
+                        Vec::new()
+                    };
                     Some((frame, chosen, face, steps))
                 })
                 .collect::<Vec<_>>(),

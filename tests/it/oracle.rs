@@ -121,6 +121,16 @@ fn never_wrong_on_machine() {
     check_scene("machine.obj", 100_000);
 }
 
+/// The default parameters with the shafts off, so that the occlusion
+/// sweep runs in every cell (with the shafts on it runs only where slices
+/// are culled): the tests of the maps' paths cover its maps too.
+pub fn with_sweep() -> OracleParams {
+    OracleParams {
+        shaft_budget: 0,
+        ..OracleParams::default()
+    }
+}
+
 /// The GPU rasteriser, or `None` (skip) without an adapter, unless
 /// `VIS5D_REQUIRE_GPU` is set (CI sets it: there the GPU path must run).
 pub fn gpu() -> Option<vis5d::oracle::GpuRasteriser> {
@@ -146,8 +156,8 @@ fn the_gpu_oracle_is_never_wrong_and_close_to_the_cpu() {
     for name in ["city.obj", "office.obj"] {
         let scene = scene::load(committed(name)).expect("committed scene loads");
         let tracer = Tracer::new(&scene);
-        let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu())
-            .expect("default parameters");
+        let oracle =
+            Oracle::new(&scene, with_sweep(), Rasteriser::cpu()).expect("valid parameters");
         let mut rng = Pcg64::seed_from_u64(0x69f0);
         let (mut cpu_hidden, mut gpu_hidden) = (0, 0);
         for (label, cell) in cells(&scene, &mut rng) {
@@ -513,7 +523,7 @@ fn a_slab_with_a_hole_hides_what_is_under_it_but_not_under_the_hole() {
         ..OracleParams::default()
     };
     let without = Oracle::new(&scene, off, Rasteriser::cpu()).unwrap();
-    let with = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu()).unwrap();
+    let with = Oracle::new(&scene, with_sweep(), Rasteriser::cpu()).unwrap();
     assert!(without.cell(&cell, None).visible.contains(1));
     let report = with.cell(&cell, None);
     assert!(!report.visible.contains(1), "the box under the slab");
@@ -1435,8 +1445,8 @@ fn a_batch_of_cells_answers_as_each_cell_alone() {
     let gpu = gpu();
     for name in ["city.obj", "office.obj"] {
         let scene = scene::load(committed(name)).expect("committed scene loads");
-        let oracle = Oracle::new(&scene, OracleParams::default(), Rasteriser::cpu())
-            .expect("default parameters");
+        let oracle =
+            Oracle::new(&scene, with_sweep(), Rasteriser::cpu()).expect("valid parameters");
         let mut rng = Pcg64::seed_from_u64(0xba7c);
         let mut boxes: Vec<Aabb> = cells(&scene, &mut rng).into_iter().map(|c| c.1).collect();
         boxes.push(Aabb::new(Vec3::splat(f32::NAN), Vec3::ONE));
