@@ -38,8 +38,8 @@ pub struct OracleFlags {
     /// geometrically from the nearest occluder to the farthest, each
     /// holding the previous one reprojected, so that many small occluders
     /// fuse. With the shafts on (the default) it runs only where slices
-    /// are culled: the shafts prove every whole object it hides, in less
-    /// time [0 to 64; 0 with --sweep-patches 0 turns the sweep off].
+    /// are culled: the shafts prove nearly every whole object it hides, in
+    /// less time [0 to 64; 0 with --sweep-patches 0 turns the sweep off].
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(0..=64))]
     pub sweep_planes: u8,
     /// Occlusion sweep: planes per face at the axis-aligned patches
