@@ -135,6 +135,17 @@ struct Node {
 }
 
 impl Node {
+    /// The children's bounds as six rows: the lower bounds along x, y
+    /// and z, then the upper ones (row `3 + k` is `hi[k]`).
+    #[inline(always)]
+    fn rows(&self) -> &[[f32; WIDTH]; 6] {
+        const _: () = assert!(std::mem::offset_of!(Node, hi) == 3 * WIDTH * 4);
+        // SAFETY: `Node` is `repr(C)`: `lo` and `hi` are six `[f32;
+        // WIDTH]` in a row from its start (the assertion above), with the
+        // alignment of `f32`.
+        unsafe { &*(self as *const Self).cast::<[[f32; WIDTH]; 6]>() }
+    }
+
     const EMPTY: Self = Self {
         lo: [[f32::INFINITY; WIDTH]; 3],
         hi: [[f32::NEG_INFINITY; WIDTH]; 3],

@@ -71,7 +71,10 @@ pub(in crate::trace) fn closest_hit(
     let mut best = NO_HIT;
     let origin = [r.origin.x, r.origin.y, r.origin.z];
     let inv = [r.inv_direction.x, r.inv_direction.y, r.inv_direction.z];
-    let negative = inv.map(|i| i < 0.0);
+    // The rows of a node's bounds ([`Node::rows`]) a ray enters and
+    // leaves the children's slabs by, per axis: chosen once per ray.
+    let near: [usize; 3] = [0, 1, 2].map(|k| if inv[k] < 0.0 { 3 + k } else { k });
+    let far = near.map(|r| (r + 3) % 6);
     let rinv = inv.map(|v| _mm256_set1_ps(v));
     let org_rinv = [0, 1, 2].map(|k| _mm256_set1_ps(origin[k] * inv[k]));
     let tmin_v = _mm256_set1_ps(tmin);
@@ -92,40 +95,36 @@ pub(in crate::trace) fn closest_hit(
             }
         } else {
             let node = &bvh.nodes[current as usize];
+            let rows = node.rows();
             let slab = |k: usize| {
-                let (near, far) = if negative[k] {
-                    (&node.hi[k], &node.lo[k])
-                } else {
-                    (&node.lo[k], &node.hi[k])
-                };
                 (
-                    _mm256_fmsub_ps(load(near), rinv[k], org_rinv[k]),
-                    _mm256_fmsub_ps(load(far), rinv[k], org_rinv[k]),
+                    _mm256_fmsub_ps(load(&rows[near[k]]), rinv[k], org_rinv[k]),
+                    _mm256_fmsub_ps(load(&rows[far[k]]), rinv[k], org_rinv[k]),
                 )
             };
             let (nx, fx) = slab(0);
             let (ny, fy) = slab(1);
             let (nz, fz) = slab(2);
-            let near = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, tmin_v));
-            let far = _mm256_min_ps(
+            let enter = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, tmin_v));
+            let leave = _mm256_min_ps(
                 _mm256_min_ps(fx, fy),
                 _mm256_min_ps(fz, _mm256_set1_ps(tmax)),
             );
-            let mut mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+            let mut mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(enter, leave)) as u32;
             if mask & mask.wrapping_sub(1) == 0 && mask != 0 {
                 // One child entered: visit it next, no stack.
                 current = node.child[mask.trailing_zeros() as usize % WIDTH];
                 continue 'visit;
             }
             if mask != 0 {
-                let near: [f32; WIDTH] = bytemuck::cast(near);
+                let enter: [f32; WIDTH] = bytemuck::cast(enter);
                 // Push the children entered, ordered so that the nearest
                 // is on top, then visit it.
                 let base = top;
                 while mask != 0 {
                     let lane = mask.trailing_zeros() as usize % WIDTH;
                     mask &= mask - 1;
-                    let entry = (node.child[lane], near[lane]);
+                    let entry = (node.child[lane], enter[lane]);
                     prefetch(bvh, entry.0);
                     // Insertion among the new entries, farthest at the
                     // bottom.
