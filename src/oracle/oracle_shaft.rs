@@ -897,6 +897,30 @@ fn along_until(tree: &SegmentTree, p: DVec3, q: DVec3, visit: &mut dyn FnMut(u32
     found
 }
 
+/// The 64 pairs of a box's corners with another's ([`corners`] order):
+/// the eight pairs of like corners first, then the others.
+const CORNER_PAIRS: [(usize, usize); 64] = {
+    let mut out = [(0, 0); 64];
+    let mut k = 0;
+    while k < 8 {
+        out[k] = (k, k);
+        k += 1;
+    }
+    let mut i = 0;
+    while i < 8 {
+        let mut j = 0;
+        while j < 8 {
+            if i != j {
+                out[k] = (i, j);
+                k += 1;
+            }
+            j += 1;
+        }
+        i += 1;
+    }
+    out
+};
+
 /// Whether the plane `n . p = c` of a polygon (`blocker`) separates boxes
 /// `a` and `b` (by more than `slack`) and every crossing of a segment
 /// between their corners lies inside the polygon.
@@ -919,21 +943,22 @@ fn crossings_inside(
         return false;
     }
     let (ca, cb) = (corners(a.0, a.1), corners(b.0, b.1));
+    let (sa, sb) = (ca.map(|p| n.dot(p) - c), cb.map(|q| n.dot(q) - c));
     let half_planes = &blocker.edges;
     let all_inside = |margin: f64| {
-        ca.iter().all(|&p| {
-            let sp = n.dot(p) - c;
-            cb.iter().all(|&q| {
-                let sq = n.dot(q) - c;
-                let x = p + (q - p) * (sp / (sp - sq));
-                half_planes.iter().all(|&(m, e)| m.dot(x) <= e - margin)
-            })
+        CORNER_PAIRS.iter().all(|&(i, j)| {
+            let (p, q, sp, sq) = (ca[i], cb[j], sa[i], sb[j]);
+            let x = p + (q - p) * (sp / (sp - sq));
+            half_planes.iter().all(|&(m, e)| m.dot(x) <= e - margin)
         })
     };
     // Most tries fail: a first pass without the margin (which is never
     // negative, so `e - margin <= e` and this pass is passed by every
     // crossing the real test passes) turns them away before the margin's
-    // 64 square roots are paid for.
+    // 64 square roots are paid for. Its pairs of like corners come first:
+    // a crossing is a weighted mean of its two ends, so those tend to be
+    // the farthest out, and a failing try ends sooner (San Francisco's
+    // tries that fail took 5.8 pairs on average in the plain order).
     if !all_inside(0.0) {
         return false;
     }
@@ -963,23 +988,24 @@ fn segments_through(
     // distance).
     let inside = margin * (1.0 + 1.0 / 1_048_576.0);
     let (ca, cb) = (corners(a.0, a.1), corners(b.0, b.1));
-    ca.iter().all(|&p| {
-        cb.iter().all(|&q| {
-            let d = q - p;
-            if let Some(balls) = balls {
-                // Outside the outer ball: the segment misses the solid.
-                // Near enough the centre: its nearest point to it is
-                // inside every plane by the margin.
-                let r = balls.distance(p, d);
-                if balls.outside(r) {
-                    return false;
-                }
-                if balls.inside(r, margin) {
-                    return true;
-                }
+    // The segments between like corners first: the outermost, so the
+    // likeliest to miss.
+    CORNER_PAIRS.iter().all(|&(i, j)| {
+        let (p, q) = (ca[i], cb[j]);
+        let d = q - p;
+        if let Some(balls) = balls {
+            // Outside the outer ball: the segment misses the solid.
+            // Near enough the centre: its nearest point to it is
+            // inside every plane by the margin.
+            let r = balls.distance(p, d);
+            if balls.outside(r) {
+                return false;
             }
-            clips_inside(&o.planes, p, d, inside)
-        })
+            if balls.inside(r, margin) {
+                return true;
+            }
+        }
+        clips_inside(&o.planes, p, d, inside)
     })
 }
 
