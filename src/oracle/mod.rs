@@ -524,7 +524,7 @@ impl<'a> Oracle<'a> {
     ) -> Vec<CellReport> {
         let prepared: Vec<Prepared> = cells
             .par_iter()
-            .map(|(cell, hidden)| self.prepare(cell, *hidden, self.shafts.is_none()))
+            .map(|(cell, hidden)| self.prepare(cell, *hidden, self.sweeps(false)))
             .collect();
         let n = self.params.resolution;
         let (mut jobs, mut counts) = (Vec::new(), Vec::with_capacity(prepared.len()));
@@ -617,12 +617,7 @@ impl<'a> Oracle<'a> {
         rasterise: &mut dyn FnMut(&[MapJob]) -> Vec<Vec<f64>>,
         sliced: Option<&SlicedScene>,
     ) -> CellReport {
-        // With the shafts on, the sweep hides next to no whole object they
-        // do not prove, for much of a cell's time (notes/oracle.md, stop
-        // 49): it runs only where the slices of the objects kept are
-        // culled, which the shafts do not test.
-        let sweep = self.shafts.is_none() || sliced.is_some();
-        match self.prepare(cell, parent_hidden, sweep) {
+        match self.prepare(cell, parent_hidden, self.sweeps(sliced.is_some())) {
             Prepared::Done(report) => *report,
             Prepared::Maps(pending) => {
                 let start = Instant::now();
@@ -631,6 +626,15 @@ impl<'a> Oracle<'a> {
                 self.finish(*pending, level0s, spent, parent_hidden, sliced)
             }
         }
+    }
+
+    /// Whether a cell's proof runs the occlusion sweep: always with the
+    /// shafts off; with them on, only where the slices of the objects kept
+    /// are culled (`culls_slices`), which the shafts do not test: for
+    /// whole objects the sweep hides next to none they do not prove, for
+    /// much of a cell's time (notes/oracle.md, stop 49).
+    fn sweeps(&self, culls_slices: bool) -> bool {
+        self.shafts.is_none() || culls_slices
     }
 
     /// A cell's proof up to its Depth Maps: the free space, the solids it
