@@ -147,28 +147,29 @@ fn direction_exponent(b: Aabb) -> i32 {
 struct Shear {
     k: [usize; 3],
     s: [f32; 3],
-    origin: Vec3,
+    origin: [f32; 3],
 }
 
 impl Shear {
+    /// The shear of ray `r`. Free of branches on the direction (the axes
+    /// are picked by arithmetic and read by array index): a branch per
+    /// axis choice mispredicts on every other ray of an incoherent
+    /// stream.
+    #[inline(always)]
     fn new(r: &obvhs::ray::Ray) -> Self {
-        let d: Vec3 = r.direction.into();
-        let a = d.abs();
-        let kz = if a.x >= a.y && a.x >= a.z {
-            0
-        } else if a.y >= a.z {
-            1
-        } else {
-            2
-        };
-        let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
-        if d[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
+        let d: [f32; 3] = [r.direction.x, r.direction.y, r.direction.z];
+        let a = d.map(f32::abs);
+        // 0 where x is the largest (ties to the lower axis), else 1 or 2.
+        let x_first = (a[0] >= a[1]) & (a[0] >= a[2]);
+        let kz = usize::from(!x_first) * (1 + usize::from(a[1] < a[2]));
+        // x and y swapped where the direction along z is negative.
+        let negative = usize::from(d[kz] < 0.0);
+        let kx = (kz + 1 + negative) % 3;
+        let ky = (kz + 2 - negative) % 3;
         Self {
             k: [kx, ky, kz],
             s: [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]],
-            origin: r.origin.into(),
+            origin: [r.origin.x, r.origin.y, r.origin.z],
         }
     }
 
@@ -178,9 +179,9 @@ impl Shear {
     fn intersect(&self, t: &Tri, tmin: f32, tmax: f32) -> f32 {
         let [kx, ky, kz] = self.k;
         let [sx, sy, sz] = self.s;
-        let a = Vec3::from(t.a) - self.origin;
-        let b = Vec3::from(t.b) - self.origin;
-        let c = Vec3::from(t.c) - self.origin;
+        let o = self.origin;
+        let rel = |p: [f32; 3]| [p[0] - o[0], p[1] - o[1], p[2] - o[2]];
+        let (a, b, c) = (rel(t.a), rel(t.b), rel(t.c));
         let (ax, ay) = (a[kx] - sx * a[kz], a[ky] - sy * a[kz]);
         let (bx, by) = (b[kx] - sx * b[kz], b[ky] - sy * b[kz]);
         let (cx, cy) = (c[kx] - sx * c[kz], c[ky] - sy * c[kz]);
