@@ -9,7 +9,7 @@ use vis5d::random::{uniform_direction as unit, uniform_point};
 use vis5d::scene::{self, Scene};
 use vis5d::trace::{Ray, Tracer, brute_force_closest_hit};
 
-/// Random rays of seven kinds over `scene`, `n` of each.
+/// Random rays of eight kinds over `scene`, `n` of each.
 fn rays(scene: &Scene, n: usize, seed: u64) -> Vec<(&'static str, Ray)> {
     let mut rng = Pcg64::seed_from_u64(seed);
     let b = scene.bounds().expanded(0.05 * scene.bounds().diagonal());
@@ -53,6 +53,15 @@ fn rays(scene: &Scene, n: usize, seed: u64) -> Vec<(&'static str, Ray)> {
             "short from surface",
             Ray::segment(s, q).with_tmax(1.0 + 1e-4),
         ));
+        // Reaching back: a negative `tmin` (hits behind the origin count),
+        // or `-0.0` (the wide traversal's integer slab order takes neither).
+        let o = point(&mut rng);
+        let tmin = if rng.random_bool(0.5) {
+            -rng.random_range(0.0..0.5f32) * diag
+        } else {
+            -0.0
+        };
+        out.push(("reaching back", Ray::new(o, unit(&mut rng)).with_tmin(tmin)));
     }
     out
 }
