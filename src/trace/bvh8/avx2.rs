@@ -51,27 +51,6 @@ fn prefetch(bvh: &Bvh8, reference: u32) {
 
 /// The closest hit of `ray` on an occluder or on `target` (see
 /// [`Tracer::closest_hit_towards`]), with `stack` as scratch.
-///
-/// A node's entry and exit distances are the maximum and minimum of its
-/// slab distances compared as signed 32-bit integers: one cycle each,
-/// where the float instructions take four (Embree's traversal does the
-/// same). The children entered are a superset of those the float maximum
-/// and minimum enter, and the hit is the same:
-/// - floats with the sign bit clear order as their bits do (`+inf` too;
-///   no slab distance is NaN), and any with it set (`-0.0` too) is a
-///   negative integer, below every float with it clear. Floats with it
-///   set order in reverse: the larger magnitude, the larger integer;
-/// - the entry: where a distance (or `tmin`) has its sign bit clear, the
-///   integer maximum is the float maximum (but for the sign of a zero,
-///   which no comparison sees); where none has, it is the float
-///   minimum, at most the float maximum;
-/// - the exit: where every distance (and `tmax`) has its sign bit clear,
-///   the integer minimum is the float minimum; otherwise it is the value
-///   with the sign bit set nearest zero, at least the float minimum;
-/// - so the float test `enter <= leave` that follows holds wherever it
-///   holds for the float entry and exit, and a child's entry distance is
-///   never above the float one (the stack drops no entry the float code
-///   keeps). The leaves' tests are exact, so visiting more changes no hit.
 #[target_feature(enable = "avx,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 pub(in crate::trace) fn closest_hit(
     tracer: &Tracer,
@@ -84,6 +63,65 @@ pub(in crate::trace) fn closest_hit(
         return None;
     }
     let scaled = ScaledRay::new(ray, tracer.dir_exponent);
+    if scaled.ray.tmin.is_sign_negative() {
+        visit::<false>(tracer, bvh, &scaled, target, stack)
+    } else {
+        visit::<true>(tracer, bvh, &scaled, target, stack)
+    }
+}
+
+/// [`closest_hit`]'s traversal, for the ray as [`ScaledRay`] made it.
+///
+/// A node's entry and exit distances are the maximum and minimum of its
+/// slab distances compared as signed 32-bit integers (one cycle each,
+/// where the float instructions take four; Embree's traversal does the
+/// same), and with `POSITIVE` (a ray whose `tmin` has its sign bit clear:
+/// every ray the builder casts) a child is entered unless its entry is
+/// above its exit as integers too; without it, as floats. The children
+/// entered are those the float code enters but for intervals that hold
+/// no hit, and the hit is the same:
+/// - floats with the sign bit clear order as their bits do (`+inf` too),
+///   and any with it set (`-0.0` too) is a negative integer, below every
+///   float with it clear. Floats with it set order in reverse: the larger
+///   magnitude, the larger integer. A child's slab distances are never
+///   NaN (its bounds are finite); an empty slot's are where the origin
+///   times the inverse direction's cap overflows (origins some 2^58
+///   scene sizes away, far outside what the padding covers), and the
+///   NaN the CPU makes has its sign bit set, like every exit of an empty
+///   slot (`-inf` or NaN), so such a slot is never entered (the float
+///   code of 94831d3 entered it there and read past the nodes, a review
+///   found);
+/// - the entry: where a distance (or `tmin`) has its sign bit clear, the
+///   integer maximum is the float maximum (but for the sign of a zero,
+///   which no comparison sees); where none has, it is the float
+///   minimum, at most the float maximum;
+/// - the exit: where every distance (and `tmax`) has its sign bit clear,
+///   the integer minimum is the float minimum; otherwise it is the value
+///   with the sign bit set nearest zero, at least the float minimum;
+/// - so the float test `enter <= leave` enters every child the float
+///   entry and exit do, and a child's entry distance is never above the
+///   float one (the stack drops no entry the float code keeps);
+/// - with `POSITIVE` the entry has its sign bit clear, and so has `tmax`
+///   as the test takes it (`tmax + 0.0`: a hit at `t = -0.0`, the origin
+///   on a triangle, makes `tmax` `-0.0`), so the integer test agrees with
+///   the float one but where a slab's exit is `-0.0` and the entry `+0.0`
+///   (the float test enters): an interval of length zero. A slab exit
+///   rounds to `-0.0` only where the origin is within rounding of the
+///   exit plane, and every hit lies inside its triangle's padded box for
+///   a margin of `t` before and after it (`BOX_PAD`), so no such child
+///   holds a hit. (Without `POSITIVE` an entry and exit both below zero
+///   would compare in reverse.)
+///
+/// The leaves' tests are exact, so visiting more changes no hit.
+#[inline]
+#[target_feature(enable = "avx,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+fn visit<const POSITIVE: bool>(
+    tracer: &Tracer,
+    bvh: &Bvh8,
+    scaled: &ScaledRay,
+    target: u32,
+    stack: &mut Stack,
+) -> Option<Hit> {
     let r = &scaled.ray;
     let shear = Shear::new(r);
     let sheared = Sheared::new(&shear);
@@ -127,13 +165,21 @@ pub(in crate::trace) fn closest_hit(
             let (ny, fy) = slab(1);
             let (nz, fz) = slab(2);
             // The entry and exit as the integer maximum and minimum of
-            // the distances' bits (see the function's notes).
+            // the distances' bits, compared as integers (see the
+            // function's notes).
             let bits = _mm256_castps_si256;
             let max = |a, b| _mm256_castsi256_ps(_mm256_max_epi32(bits(a), bits(b)));
             let min = |a, b| _mm256_castsi256_ps(_mm256_min_epi32(bits(a), bits(b)));
             let enter = max(max(nx, ny), max(nz, tmin_v));
-            let leave = min(min(fx, fy), min(fz, _mm256_set1_ps(tmax)));
-            let mut mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(enter, leave)) as u32;
+            // `+ 0.0`: a hit at `t = -0.0` (the origin on a triangle)
+            // lowers `tmax` to `-0.0`, below every entry as an integer.
+            let leave = min(min(fx, fy), min(fz, _mm256_set1_ps(tmax + 0.0)));
+            let mut mask = if POSITIVE {
+                let beyond = _mm256_cmpgt_epi32(bits(enter), bits(leave));
+                !(_mm256_movemask_ps(_mm256_castsi256_ps(beyond)) as u32) & 0xff
+            } else {
+                _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(enter, leave)) as u32
+            };
             if mask & mask.wrapping_sub(1) == 0 && mask != 0 {
                 // One child entered: visit it next, no stack.
                 current = node.child[mask.trailing_zeros() as usize % WIDTH];
