@@ -102,8 +102,8 @@ pub(in crate::trace) fn closest_hit(
 ///   entry and exit do, and a child's entry distance is never above the
 ///   float one (the stack drops no entry the float code keeps);
 /// - with `POSITIVE` the entry has its sign bit clear, and so has `tmax`
-///   as the test takes it (`tmax + 0.0`: a hit at `t = -0.0`, the origin
-///   on a triangle, makes `tmax` `-0.0`), so the integer test agrees with
+///   (kept `+0.0` where a hit at `t = -0.0`, the origin on a triangle,
+///   would make it `-0.0`), so the integer test agrees with
 ///   the float one but where a slab's exit is `-0.0` and the entry `+0.0`
 ///   (the float test enters): an interval of length zero. A slab exit
 ///   rounds to `-0.0` only where the origin is within rounding of the
@@ -126,8 +126,20 @@ fn visit<const POSITIVE: bool>(
     let shear = Shear::new(r);
     let sheared = Sheared::new(&shear);
     let tmin = r.tmin;
-    let mut tmax = r.tmax;
+    // `+ 0.0`: `tmax` is never `-0.0` (below every entry as an integer),
+    // here or after a hit at `t = -0.0` (the origin on a triangle).
+    let mut tmax = r.tmax + 0.0;
     let mut best = NO_HIT;
+    // `a < b` for the distances the traversal compares (entries and
+    // `tmax`): with `POSITIVE` all have the sign bit clear and order as
+    // their bits do, compared as integers.
+    let before = |a: f32, b: f32| {
+        if POSITIVE {
+            a.to_bits() < b.to_bits()
+        } else {
+            a < b
+        }
+    };
     let origin = [r.origin.x, r.origin.y, r.origin.z];
     let inv = [r.inv_direction.x, r.inv_direction.y, r.inv_direction.z];
     // The rows of a node's bounds ([`Node::rows`]) a ray enters and
@@ -150,7 +162,7 @@ fn visit<const POSITIVE: bool>(
                 let both = count == 2;
                 tmax = test_packs(
                     tracer, &sheared, &shear, lo, hi, both, target, tmin, tmax, &mut best,
-                );
+                ) + 0.0;
             }
         } else {
             let node = &bvh.nodes[current as usize];
@@ -171,9 +183,7 @@ fn visit<const POSITIVE: bool>(
             let max = |a, b| _mm256_castsi256_ps(_mm256_max_epi32(bits(a), bits(b)));
             let min = |a, b| _mm256_castsi256_ps(_mm256_min_epi32(bits(a), bits(b)));
             let enter = max(max(nx, ny), max(nz, tmin_v));
-            // `+ 0.0`: a hit at `t = -0.0` (the origin on a triangle)
-            // lowers `tmax` to `-0.0`, below every entry as an integer.
-            let leave = min(min(fx, fy), min(fz, _mm256_set1_ps(tmax + 0.0)));
+            let leave = min(min(fx, fy), min(fz, _mm256_set1_ps(tmax)));
             let mut mask = if POSITIVE {
                 let beyond = _mm256_cmpgt_epi32(bits(enter), bits(leave));
                 !(_mm256_movemask_ps(_mm256_castsi256_ps(beyond)) as u32) & 0xff
@@ -198,7 +208,7 @@ fn visit<const POSITIVE: bool>(
                     // Insertion among the new entries, farthest at the
                     // bottom.
                     let mut at = top;
-                    while at > base && stack[(at - 1) % STACK].1 < entry.1 {
+                    while at > base && before(stack[(at - 1) % STACK].1, entry.1) {
                         stack[at % STACK] = stack[(at - 1) % STACK];
                         at -= 1;
                     }
@@ -217,7 +227,7 @@ fn visit<const POSITIVE: bool>(
             }
             top -= 1;
             let (reference, enter) = stack[top % STACK];
-            if enter <= tmax {
+            if !before(tmax, enter) {
                 current = reference;
                 continue 'visit;
             }
