@@ -54,7 +54,8 @@ fn rays(scene: &Scene, n: usize, seed: u64) -> Vec<(&'static str, Ray)> {
             Ray::segment(s, q).with_tmax(1.0 + 1e-4),
         ));
         // Reaching back: a negative `tmin` (hits behind the origin count),
-        // or `-0.0` (the wide traversal's integer slab order takes neither).
+        // or `-0.0`: the wide traversal compares their distances as floats,
+        // not as integers.
         let o = point(&mut rng);
         let tmin = if rng.random_bool(0.5) {
             -rng.random_range(0.0..0.5f32) * diag
