@@ -588,6 +588,7 @@ impl Tracer {
         assert_eq!(rays.len(), out.len(), "one output slot per ray");
         out.par_chunks_mut(CHUNK)
             .zip(rays.par_chunks(CHUNK))
+            .with_max_len(CHUNKS_PER_JOB)
             .for_each(|(out, rays)| self.trace_run(rays, None, out));
     }
 
@@ -633,12 +634,23 @@ impl Tracer {
         assert_eq!(rays.len(), targets.len(), "one target per ray");
         out.par_chunks_mut(CHUNK)
             .zip(rays.par_chunks(CHUNK).zip(targets.par_chunks(CHUNK)))
+            .with_max_len(CHUNKS_PER_JOB)
             .for_each(|(out, (rays, targets))| self.trace_run(rays, Some(targets), out));
     }
 }
 
 /// Rays a parallel batch hands each task.
 const CHUNK: usize = 256;
+
+/// The most chunks of [`CHUNK`] rays one rayon job traces: the batch is
+/// cut down to jobs of at most 2,048 rays (about half a millisecond), so
+/// a thread that runs out of work always finds some to steal. Without it
+/// rayon cut a batch into two pieces a thread and cut further only a piece
+/// that was stolen: a piece a thread had started could not be shared, and
+/// where it held the costlier rays the other thread waited (two threads
+/// traced 1.67x one thread's rays on a made office block, where two
+/// processes traced 2.0x; notes/trace.md, stop 52).
+const CHUNKS_PER_JOB: usize = 8;
 
 mod bvh8;
 mod huge;
