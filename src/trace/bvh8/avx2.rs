@@ -195,14 +195,24 @@ fn visit<const POSITIVE: bool>(
                 continue 'visit;
             }
             if mask != 0 {
-                // Push the children entered, farthest at the bottom and
-                // the nearest on top, then visit it. Each goes straight
-                // to its place, its rank among them (`ranks`): no
-                // insertion loop, whose branches mispredicted.
-                let rank: [u32; WIDTH] = bytemuck::cast(ranks(enter, entered));
+                // Visit the nearest child entered next, and push the
+                // others, farthest at the bottom. Each goes straight to
+                // its place, its rank among them (`ranks`): no insertion
+                // loop, whose branches mispredicted. The nearest is taken
+                // from the ranks in registers, not read back from the
+                // stack; it is stored too (above the top, where the next
+                // push overwrites it) and prefetched with the others:
+                // leaving it out of the loop made the loop wait for the
+                // ranks and the prefetches start later (6-8% slower).
+                let rv = ranks(enter, entered);
+                let rank: [u32; WIDTH] = bytemuck::cast(rv);
                 let enter: [f32; WIDTH] = bytemuck::cast(enter);
                 let base = top;
-                top += mask.count_ones() as usize;
+                let n = mask.count_ones();
+                let nearest = _mm256_cmpeq_epi32(rv, _mm256_set1_epi32(n as i32 - 1));
+                let nearest = _mm256_movemask_ps(_mm256_castsi256_ps(nearest)) as u32;
+                current = node.child[nearest.trailing_zeros() as usize % WIDTH];
+                top += n as usize - 1;
                 while mask != 0 {
                     let lane = mask.trailing_zeros() as usize % WIDTH;
                     mask &= mask - 1;
@@ -210,8 +220,6 @@ fn visit<const POSITIVE: bool>(
                     prefetch(bvh, child);
                     stack[(base + rank[lane] as usize) % STACK] = (child, enter[lane]);
                 }
-                top -= 1;
-                current = stack[top % STACK].0;
                 continue 'visit;
             }
         }
