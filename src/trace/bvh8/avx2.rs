@@ -204,7 +204,7 @@ fn visit<const POSITIVE: bool>(
                 // push overwrites it) and prefetched with the others:
                 // leaving it out of the loop made the loop wait for the
                 // ranks and the prefetches start later (6-8% slower).
-                let rv = ranks(enter, entered);
+                let rv = ranks::<POSITIVE>(enter, entered);
                 let rank: [u32; WIDTH] = bytemuck::cast(rv);
                 let enter: [f32; WIDTH] = bytemuck::cast(enter);
                 let base = top;
@@ -251,15 +251,24 @@ fn visit<const POSITIVE: bool>(
 /// tested against `tmax` with its exact distance.
 #[inline]
 #[target_feature(enable = "avx,avx2")]
-fn ranks(enter: __m256, entered: __m256i) -> __m256i {
+fn ranks<const POSITIVE: bool>(enter: __m256, entered: __m256i) -> __m256i {
     let b = _mm256_castps_si256(enter);
-    // Floats with the sign bit set order in reverse as integers: flip the
-    // others.
-    let b = _mm256_xor_si256(b, _mm256_srli_epi32::<1>(_mm256_srai_epi32::<31>(b)));
     let lanes = _mm256_setr_epi32(7, 6, 5, 4, 3, 2, 1, 0);
-    let key = _mm256_or_si256(_mm256_andnot_si256(_mm256_set1_epi32(7), b), lanes);
-    // A lane not entered is never farther.
-    let key = _mm256_blendv_epi8(_mm256_set1_epi32(i32::MIN), key, entered);
+    let key = if POSITIVE {
+        // Every distance entered has its sign bit clear: keys of at least
+        // zero, and a lane not entered, -1 (all ones), is never farther
+        // and never ties with one. (The fewest operations: the nearest
+        // child waits on the ranks.)
+        let key = _mm256_or_si256(_mm256_andnot_si256(_mm256_set1_epi32(7), b), lanes);
+        _mm256_or_si256(key, _mm256_andnot_si256(entered, _mm256_set1_epi32(-1)))
+    } else {
+        // Floats with the sign bit set order in reverse as integers: flip
+        // the others.
+        let b = _mm256_xor_si256(b, _mm256_srli_epi32::<1>(_mm256_srai_epi32::<31>(b)));
+        let key = _mm256_or_si256(_mm256_andnot_si256(_mm256_set1_epi32(7), b), lanes);
+        // A lane not entered is never farther.
+        _mm256_blendv_epi8(_mm256_set1_epi32(i32::MIN), key, entered)
+    };
     let mut rank = _mm256_setzero_si256();
     let mut turn = _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 0);
     for _ in 1..WIDTH {
@@ -409,4 +418,65 @@ fn test_packs(
         }
     }
     tmax
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`ranks`] places the children entered at 0 to one less than their
+    /// number, each once, the farthest lowest, and never gives a lane
+    /// not entered the top place (the nearest child is the lane ranked
+    /// one less than their number): on ties, zeros (origins inside a
+    /// box), negative distances and every mask.
+    #[test]
+    fn ranks_place_each_child_entered_once() {
+        if !crate::trace::wide_cpu() {
+            return;
+        }
+        let values = [0.0f32, 0.0, 1.0, 1.0, 2.5, 1e-40, 3e5, 7.0];
+        let negative = [-0.0f32, -1.0, 0.0, -3e5, 2.0, -1e-40, 1.0, -1.0];
+        let mut seed = 1u32;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed
+        };
+        for _ in 0..2000 {
+            for positive in [true, false] {
+                let pool = if positive { &values } else { &negative };
+                let enter: [f32; WIDTH] =
+                    std::array::from_fn(|_| pool[next() as usize % pool.len()]);
+                let mask = next() & 0xff;
+                let entered: [i32; WIDTH] =
+                    std::array::from_fn(|l| if mask >> l & 1 == 1 { -1 } else { 0 });
+                // SAFETY: the CPU has the features (checked above).
+                let rank: [i32; WIDTH] = bytemuck::cast(unsafe {
+                    let (e, m) = (bytemuck::cast(enter), bytemuck::cast(entered));
+                    if positive {
+                        ranks::<true>(e, m)
+                    } else {
+                        ranks::<false>(e, m)
+                    }
+                });
+                let n = mask.count_ones() as i32;
+                let mut seen = [false; WIDTH];
+                for l in 0..WIDTH {
+                    if mask >> l & 1 == 1 {
+                        assert!((0..n).contains(&rank[l]), "{enter:?} {mask:08b} {rank:?}");
+                        assert!(!seen[rank[l] as usize], "{enter:?} {mask:08b} {rank:?}");
+                        seen[rank[l] as usize] = true;
+                        for k in 0..WIDTH {
+                            if mask >> k & 1 == 1 && enter[k] > enter[l] {
+                                assert!(rank[k] < rank[l], "{enter:?} {mask:08b} {rank:?}");
+                            }
+                        }
+                    } else {
+                        assert_ne!(rank[l], n - 1, "{enter:?} {mask:08b} {rank:?}");
+                    }
+                }
+            }
+        }
+    }
 }
