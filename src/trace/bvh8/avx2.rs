@@ -253,20 +253,24 @@ fn visit<const POSITIVE: bool>(
 #[target_feature(enable = "avx,avx2")]
 fn ranks<const POSITIVE: bool>(enter: __m256, entered: __m256i) -> __m256i {
     let b = _mm256_castps_si256(enter);
+    // Floats with the sign bit set order in reverse as integers: flip the
+    // others (with `POSITIVE` every distance entered has the sign bit
+    // clear, and the flip is left out: the nearest child waits on the
+    // ranks).
+    let b = if POSITIVE {
+        b
+    } else {
+        _mm256_xor_si256(b, _mm256_srli_epi32::<1>(_mm256_srai_epi32::<31>(b)))
+    };
     let lanes = _mm256_setr_epi32(7, 6, 5, 4, 3, 2, 1, 0);
+    let key = _mm256_or_si256(_mm256_andnot_si256(_mm256_set1_epi32(7), b), lanes);
+    // A lane not entered is never farther than one entered, and never
+    // ties with one: keyed -1 (all ones) with `POSITIVE`, where entered
+    // keys are at least zero (one instruction, not a blend), else the
+    // least integer.
     let key = if POSITIVE {
-        // Every distance entered has its sign bit clear: keys of at least
-        // zero, and a lane not entered, -1 (all ones), is never farther
-        // and never ties with one. (The fewest operations: the nearest
-        // child waits on the ranks.)
-        let key = _mm256_or_si256(_mm256_andnot_si256(_mm256_set1_epi32(7), b), lanes);
         _mm256_or_si256(key, _mm256_andnot_si256(entered, _mm256_set1_epi32(-1)))
     } else {
-        // Floats with the sign bit set order in reverse as integers: flip
-        // the others.
-        let b = _mm256_xor_si256(b, _mm256_srli_epi32::<1>(_mm256_srai_epi32::<31>(b)));
-        let key = _mm256_or_si256(_mm256_andnot_si256(_mm256_set1_epi32(7), b), lanes);
-        // A lane not entered is never farther.
         _mm256_blendv_epi8(_mm256_set1_epi32(i32::MIN), key, entered)
     };
     let mut rank = _mm256_setzero_si256();
@@ -293,8 +297,9 @@ impl Sheared {
     /// `shear` in registers. The origin's coordinates are picked from a
     /// register by lane (`vpermps`), not read back from memory by index:
     /// the copy the compiler made for that read loaded eight bytes across
-    /// two of the stores just made, which the CPU cannot forward (a stall
-    /// of some 15 cycles a ray).
+    /// two of the stores just made, which the CPU cannot forward (on a
+    /// scene of two triangles, 52 -> 44 ns a ray; notes/trace.md, stop
+    /// 52).
     #[inline]
     #[target_feature(enable = "avx,avx2")]
     fn new(shear: &Shear) -> Self {
